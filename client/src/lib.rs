@@ -1,0 +1,7 @@
+//! laparo client library: the trainee station, the 1 kHz force loop (haptics), the
+//! instructor's observer, replay and the demo.
+//!
+//! The client speaks the contract in [`laparo_proto`]; its parts land with the force
+//! loop, server and recording work.
+
+pub use laparo_proto as proto;
