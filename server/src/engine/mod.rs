@@ -1,0 +1,14 @@
+//! The simulation, synchronous and free of networking: plain data in, plain data out.
+//!
+//! Stages: [`mesh`] (loading and topology), [`material`], [`elastic`] (tensor-mass
+//! stiffness), [`integrate`] (explicit, implicit, static), [`scene`] (what a scene
+//! declares, and building only that).
+
+pub mod elastic;
+pub mod integrate;
+pub mod material;
+pub mod mesh;
+pub mod scene;
+
+#[cfg(test)]
+pub(crate) mod testing;

@@ -1,0 +1,4 @@
+//! laparo server library: the simulation engine (synchronous, free of networking) and,
+//! as they land, the session, service and recording layers around it.
+
+pub mod engine;
