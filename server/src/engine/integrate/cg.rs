@@ -1,0 +1,161 @@
+//! Preconditioned conjugate gradient on a symmetric positive-definite block system with
+//! some unknowns imposed.
+//!
+//! The system `A x = b` is solved for the free vertices only, the imposed ones keeping
+//! the values already in `x` ("projected" CG): residuals and search directions are kept
+//! zero on imposed vertices, which is CG on `A_ff x_f = b_f − A_fc x_c`. The
+//! preconditioner is block Jacobi, `P = diag(A_ii)⁻¹`, exact on each 3×3 vertex block.
+
+use nalgebra::{Matrix3, Vector3};
+
+/// Buffers of one CG solve, allocated once.
+#[derive(Clone, Debug)]
+pub struct CgWorkspace {
+    r: Vec<Vector3<f64>>,
+    z: Vec<Vector3<f64>>,
+    p: Vec<Vector3<f64>>,
+    q: Vec<Vector3<f64>>,
+    /// Inverse diagonal blocks `A_ii⁻¹`, filled by the caller.
+    pub precond: Vec<Matrix3<f64>>,
+}
+
+/// When a solve stops.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stop {
+    /// The caller's measure of the size of the forces forming `b`.
+    pub reference: f64,
+    /// Stop when `‖r_f‖ ≤ tolerance · reference`.
+    pub tolerance: f64,
+    /// Or after this many iterations.
+    pub max_iterations: u32,
+}
+
+/// Outcome of a solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CgReport {
+    pub iterations: u32,
+    /// `‖r_f‖ / reference`, the final relative residual.
+    pub relative_residual: f64,
+    pub converged: bool,
+}
+
+impl CgWorkspace {
+    pub fn new(n: usize) -> Self {
+        let z = vec![Vector3::zeros(); n];
+        CgWorkspace {
+            r: z.clone(),
+            p: z.clone(),
+            q: z.clone(),
+            z,
+            precond: vec![Matrix3::identity(); n],
+        }
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        self.r.capacity() * 24 * 4 + self.precond.capacity() * 72
+    }
+
+    /// Solves `A x = b` on the free vertices (`imposed[i] == false`), starting from the
+    /// values in `x` (a warm start) and leaving imposed entries of `x` untouched.
+    ///
+    /// Stops when `‖r_f‖ ≤ stop.tolerance · stop.reference`. `reference` is the caller's measure of
+    /// the size of the forces forming `b` (never the residual of the warm start alone,
+    /// or a good guess would demand a better answer); if it is zero the free solution is
+    /// zero. `apply(v, out)` must write `out = A v`.
+    pub fn solve(
+        &mut self,
+        apply: impl Fn(&[Vector3<f64>], &mut [Vector3<f64>]),
+        imposed: &[bool],
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        stop: Stop,
+    ) -> CgReport {
+        let Stop {
+            reference,
+            tolerance,
+            max_iterations,
+        } = stop;
+        let n = x.len();
+        if reference == 0.0 {
+            for i in 0..n {
+                if !imposed[i] {
+                    x[i] = Vector3::zeros();
+                }
+            }
+            return CgReport {
+                iterations: 0,
+                relative_residual: 0.0,
+                converged: true,
+            };
+        }
+        let goal = tolerance * reference;
+        apply(x, &mut self.q);
+        for i in 0..n {
+            self.r[i] = if imposed[i] {
+                Vector3::zeros()
+            } else {
+                b[i] - self.q[i]
+            };
+        }
+        let mut rz = 0.0;
+        for i in 0..n {
+            self.z[i] = self.precond[i] * self.r[i];
+            self.p[i] = self.z[i];
+            rz += self.r[i].dot(&self.z[i]);
+        }
+        let mut r_norm = norm(&self.r);
+        let mut iterations = 0;
+        while r_norm > goal && iterations < max_iterations {
+            apply(&self.p, &mut self.q);
+            let mut pq = 0.0;
+            for i in 0..n {
+                if imposed[i] {
+                    self.q[i] = Vector3::zeros();
+                }
+                pq += self.p[i].dot(&self.q[i]);
+            }
+            if pq <= 0.0 || !pq.is_finite() {
+                // A is SPD on the free set, so this is a breakdown from round-off at a
+                // converged residual, or a system without enough supports.
+                break;
+            }
+            let alpha = rz / pq;
+            let mut rz_new = 0.0;
+            let mut rr = 0.0;
+            for i in 0..n {
+                x[i] += alpha * self.p[i];
+                self.r[i] -= alpha * self.q[i];
+                self.z[i] = self.precond[i] * self.r[i];
+                rz_new += self.r[i].dot(&self.z[i]);
+                rr += self.r[i].norm_squared();
+            }
+            let beta = rz_new / rz;
+            for i in 0..n {
+                self.p[i] = self.z[i] + beta * self.p[i];
+            }
+            rz = rz_new;
+            r_norm = rr.sqrt();
+            iterations += 1;
+        }
+        CgReport {
+            iterations,
+            relative_residual: r_norm / reference,
+            converged: r_norm <= goal,
+        }
+    }
+}
+
+/// Euclidean norm of a block vector.
+pub fn norm(v: &[Vector3<f64>]) -> f64 {
+    v.iter().map(|x| x.norm_squared()).sum::<f64>().sqrt()
+}
+
+/// Euclidean norm of a block vector over the free vertices only.
+pub fn free_norm(v: &[Vector3<f64>], imposed: &[bool]) -> f64 {
+    v.iter()
+        .zip(imposed)
+        .filter(|(_, c)| !**c)
+        .map(|(x, _)| x.norm_squared())
+        .sum::<f64>()
+        .sqrt()
+}

@@ -1,0 +1,35 @@
+//! Energies, for stability checks and reports.
+
+use nalgebra::Vector3;
+
+use super::State;
+use crate::engine::elastic::ElasticModel;
+
+/// Kinetic energy `½ Σ m_i |v_i|²`, J.
+pub fn kinetic_energy(model: &ElasticModel, state: &State) -> f64 {
+    state
+        .v
+        .iter()
+        .zip(&model.mass)
+        .map(|(v, m)| 0.5 * m * v.norm_squared())
+        .sum()
+}
+
+/// Total mechanical energy under uniform gravity `g`:
+/// `½ Σ m_i |v_i|² + ½ uᵀ K u − Σ m_i g · u_i` (J), zero at rest in the reference
+/// configuration. With damping and fixed supports it can only decrease over time in
+/// the exact dynamics; the static equilibrium is its minimum.
+pub fn mechanical_energy(model: &ElasticModel, state: &State, gravity: Vector3<f64>) -> f64 {
+    let u: Vec<Vector3<f64>> = state
+        .x
+        .iter()
+        .zip(&model.rest)
+        .map(|(x, r)| x - r)
+        .collect();
+    let gravity_work: f64 = u
+        .iter()
+        .zip(&model.mass)
+        .map(|(u, m)| m * gravity.dot(u))
+        .sum();
+    kinetic_energy(model, state) + model.strain_energy(&u) - gravity_work
+}
