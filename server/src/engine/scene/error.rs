@@ -1,0 +1,32 @@
+//! Scene errors.
+
+use crate::engine::mesh::MeshError;
+
+/// Why a scene could not be read or built. Each variant names the scene and where in
+/// it the fault is.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{scene}: cannot read: {message}")]
+    Io { scene: String, message: String },
+    /// TOML syntax, an unknown key, or a value of the wrong type.
+    #[error("{scene}:{line}: `{path}`: {message}", line = line.map_or(String::from("?"), |l| l.to_string()))]
+    Parse {
+        scene: String,
+        path: String,
+        line: Option<usize>,
+        message: String,
+    },
+    /// A value out of its range, or inconsistent with the rest of the scene.
+    #[error("{scene}: `{path}`: {message}")]
+    Invalid {
+        scene: String,
+        path: String,
+        message: String,
+    },
+    #[error("{scene}: mesh: {source}")]
+    Mesh {
+        scene: String,
+        #[source]
+        source: MeshError,
+    },
+}

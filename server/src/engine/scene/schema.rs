@@ -1,0 +1,382 @@
+//! The scene file format (TOML), its defaults and its range checks.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::SceneError;
+use crate::engine::integrate::IntegratorKind;
+
+/// A scene as declared in its TOML file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Short name, unique among the scenes a server offers.
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub mesh: MeshSpec,
+    pub material: MaterialSpec,
+    #[serde(default)]
+    pub fixed: FixedSpec,
+    /// Gravity, m/s², in the scene frame; `[0, 0, 0]` turns it off.
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    #[serde(default)]
+    pub mechanics: MechanicsSpec,
+    #[serde(default)]
+    pub instruments: Vec<InstrumentSpec>,
+    #[serde(default)]
+    pub force_model: ForceModelSpec,
+    #[serde(default)]
+    pub recording: RecordingSpec,
+    /// The folder relative paths are resolved against (the scene file's folder).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+    /// Where the scene came from, for messages.
+    #[serde(skip)]
+    pub source: String,
+}
+
+/// The volume mesh.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// Gmsh `.msh` file (v1 or v2.2), relative to the scene file, or `builtin:NAME` for
+    /// a mesh embedded in the binary.
+    pub file: String,
+    /// Metres per mesh unit.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Translate the scaled mesh so that its bounding-box centre is at the origin.
+    #[serde(default)]
+    pub center: bool,
+}
+
+/// Material of the whole mesh, with optional per-region overrides.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus E, Pa.
+    pub young_modulus: f64,
+    /// Poisson's ratio ν, in [0, 0.5).
+    pub poisson_ratio: f64,
+    /// Density ρ, kg/m³.
+    pub density: f64,
+    /// Materials of tetrahedra with a given physical tag.
+    #[serde(default)]
+    pub regions: Vec<RegionSpec>,
+}
+
+/// The material of one tagged region of the mesh; unset fields take the scene's.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// The Gmsh physical tag of the region's tetrahedra.
+    pub tag: i32,
+    pub young_modulus: Option<f64>,
+    pub poisson_ratio: Option<f64>,
+    pub density: Option<f64>,
+}
+
+/// Vertices held in place (supports).
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FixedSpec {
+    /// Vertex indices, 0-based in file order.
+    #[serde(default)]
+    pub nodes: Vec<u32>,
+    /// Axis-aligned boxes in metres (after scaling and centring): every vertex inside
+    /// one is fixed.
+    #[serde(default)]
+    pub boxes: Vec<BoxSpec>,
+    /// With `boxes`, fix only surface vertices inside them (an attachment on the
+    /// surface, not a block of tissue).
+    #[serde(default)]
+    pub surface_only: bool,
+}
+
+/// An axis-aligned box, m.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+/// The mechanics loop.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicsSpec {
+    /// `explicit`, `implicit` or `static`.
+    #[serde(default = "default_integrator")]
+    pub integrator: IntegratorKind,
+    /// Mechanics ticks per second, Hz.
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// Mass-proportional damping α, 1/s.
+    #[serde(default = "default_damping")]
+    pub damping: f64,
+    /// Relative conjugate-gradient tolerance (implicit and static).
+    #[serde(default = "default_cg_tolerance")]
+    pub cg_tolerance: f64,
+    /// Conjugate-gradient iteration cap per tick.
+    #[serde(default = "default_cg_max_iterations")]
+    pub cg_max_iterations: u32,
+}
+
+impl Default for MechanicsSpec {
+    fn default() -> Self {
+        MechanicsSpec {
+            integrator: default_integrator(),
+            rate_hz: default_rate(),
+            damping: default_damping(),
+            cg_tolerance: default_cg_tolerance(),
+            cg_max_iterations: default_cg_max_iterations(),
+        }
+    }
+}
+
+/// A laparoscopic instrument: the points within `radius` of the segment from its tip
+/// `P` to `P + length·Z`, entering the body through a fixed trocar point.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentSpec {
+    pub name: String,
+    /// Shaft radius r, m.
+    pub radius: f64,
+    /// Shaft length l inside the body, m.
+    pub length: f64,
+    /// Trocar point, m, in the scene frame; torques are taken about it.
+    pub trocar: [f64; 3],
+    /// Whether the tip pushes tissue.
+    #[serde(default = "yes")]
+    pub tip_contact: bool,
+    /// Whether the shaft pushes tissue.
+    #[serde(default = "yes")]
+    pub shaft_contact: bool,
+}
+
+/// How reaction forces are computed.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceModelSpec {
+    #[serde(default)]
+    pub kind: ForceModelKind,
+}
+
+/// The reaction-force model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ForceModelKind {
+    /// The paper's: apparent stiffness proportional to the local Young's modulus.
+    #[default]
+    Geometric,
+    /// Stiffness and anchors fitted to the elastic model's reaction each tick.
+    Calibrated,
+}
+
+/// Session recording.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingSpec {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+}
+
+impl Default for RecordingSpec {
+    fn default() -> Self {
+        RecordingSpec { enabled: true }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+fn default_integrator() -> IntegratorKind {
+    IntegratorKind::Implicit
+}
+fn default_rate() -> f64 {
+    60.0
+}
+fn default_damping() -> f64 {
+    10.0
+}
+fn default_cg_tolerance() -> f64 {
+    1e-6
+}
+fn default_cg_max_iterations() -> u32 {
+    1000
+}
+
+impl Scene {
+    /// Parses and checks a scene. `source` names it in messages; `base_dir` resolves its
+    /// relative mesh path.
+    pub fn parse(text: &str, source: &str, base_dir: Option<&Path>) -> Result<Scene, SceneError> {
+        let parse_error = |path: String, err: &toml::de::Error| SceneError::Parse {
+            scene: source.to_string(),
+            path,
+            line: err
+                .span()
+                .map(|s| 1 + text[..s.start.min(text.len())].matches('\n').count()),
+            message: err.message().to_string(),
+        };
+        let de = toml::Deserializer::parse(text).map_err(|e| parse_error(String::new(), &e))?;
+        let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            parse_error(if path == "." { String::new() } else { path }, e.inner())
+        })?;
+        scene.base_dir = base_dir.map(Path::to_path_buf);
+        scene.source = source.to_string();
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads and checks a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let source = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+            scene: source.clone(),
+            message: e.to_string(),
+        })?;
+        Scene::parse(&text, &source, path.parent())
+    }
+
+    /// The embedded default scene.
+    pub fn default_scene() -> Scene {
+        Scene::parse(super::DEFAULT_SCENE, "builtin:default.toml", None)
+            .expect("the embedded default scene is valid")
+    }
+
+    pub(super) fn invalid(
+        &self,
+        path: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
+        SceneError::Invalid {
+            scene: self.source.clone(),
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    /// Range and consistency checks; each error names the key's path.
+    fn validate(&self) -> Result<(), SceneError> {
+        if self.name.trim().is_empty() {
+            return Err(self.invalid("name", "must not be empty"));
+        }
+        self.check_positive("mesh.scale", self.mesh.scale)?;
+        self.check_material(
+            "material",
+            Some(self.material.young_modulus),
+            Some(self.material.poisson_ratio),
+            Some(self.material.density),
+        )?;
+        let mut tags = std::collections::HashSet::new();
+        for (k, r) in self.material.regions.iter().enumerate() {
+            let path = format!("material.regions[{k}]");
+            if !tags.insert(r.tag) {
+                return Err(self.invalid(
+                    format!("{path}.tag"),
+                    format!("tag {} is given twice", r.tag),
+                ));
+            }
+            self.check_material(&path, r.young_modulus, r.poisson_ratio, r.density)?;
+        }
+        for (k, b) in self.fixed.boxes.iter().enumerate() {
+            let path = format!("fixed.boxes[{k}]");
+            if b.min.iter().chain(&b.max).any(|v| !v.is_finite()) {
+                return Err(self.invalid(path, "corners must be finite"));
+            }
+            if (0..3).any(|a| b.min[a] > b.max[a]) {
+                return Err(self.invalid(path, "min must not exceed max on any axis"));
+            }
+        }
+        if self.gravity.iter().any(|g| !g.is_finite()) {
+            return Err(self.invalid("gravity", "must be finite"));
+        }
+        let m = &self.mechanics;
+        if !(m.rate_hz.is_finite() && (1.0..=10_000.0).contains(&m.rate_hz)) {
+            return Err(self.invalid(
+                "mechanics.rate_hz",
+                format!("{} is outside [1, 10000] Hz", m.rate_hz),
+            ));
+        }
+        if !(m.damping.is_finite() && m.damping >= 0.0) {
+            return Err(self.invalid(
+                "mechanics.damping",
+                format!("{} must be finite and ≥ 0 (1/s)", m.damping),
+            ));
+        }
+        if !(m.cg_tolerance.is_finite() && m.cg_tolerance > 0.0 && m.cg_tolerance < 1.0) {
+            return Err(self.invalid(
+                "mechanics.cg_tolerance",
+                format!("{} is outside (0, 1)", m.cg_tolerance),
+            ));
+        }
+        if m.cg_max_iterations == 0 {
+            return Err(self.invalid("mechanics.cg_max_iterations", "must be at least 1"));
+        }
+        let mut names = std::collections::HashSet::new();
+        for (k, ins) in self.instruments.iter().enumerate() {
+            let path = format!("instruments[{k}]");
+            if ins.name.trim().is_empty() {
+                return Err(self.invalid(format!("{path}.name"), "must not be empty"));
+            }
+            if !names.insert(ins.name.as_str()) {
+                return Err(self.invalid(
+                    format!("{path}.name"),
+                    format!("instrument `{}` is declared twice", ins.name),
+                ));
+            }
+            self.check_positive(&format!("{path}.radius"), ins.radius)?;
+            self.check_positive(&format!("{path}.length"), ins.length)?;
+            if ins.radius >= ins.length {
+                return Err(
+                    self.invalid(format!("{path}.radius"), "must be smaller than the length")
+                );
+            }
+            if ins.trocar.iter().any(|v| !v.is_finite()) {
+                return Err(self.invalid(format!("{path}.trocar"), "must be finite"));
+            }
+        }
+        Ok(())
+    }
+
+    fn check_positive(&self, path: &str, v: f64) -> Result<(), SceneError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(self.invalid(path, format!("{v} must be finite and > 0")))
+        }
+    }
+
+    fn check_material(
+        &self,
+        path: &str,
+        e: Option<f64>,
+        nu: Option<f64>,
+        rho: Option<f64>,
+    ) -> Result<(), SceneError> {
+        if let Some(e) = e {
+            self.check_positive(&format!("{path}.young_modulus"), e)?;
+        }
+        if let Some(nu) = nu {
+            // ν = 0.5 is incompressible: λ = Eν/((1+ν)(1−2ν)) is infinite. Negative
+            // (auxetic) ratios are not tissue.
+            if !(nu.is_finite() && (0.0..0.5).contains(&nu)) {
+                return Err(self.invalid(
+                    format!("{path}.poisson_ratio"),
+                    format!("{nu} is outside [0, 0.5)"),
+                ));
+            }
+        }
+        if let Some(rho) = rho {
+            self.check_positive(&format!("{path}.density"), rho)?;
+        }
+        Ok(())
+    }
+}

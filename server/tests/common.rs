@@ -1,0 +1,96 @@
+//! Shared by the engine's integration tests.
+#![allow(dead_code)]
+
+use laparo_server::engine::integrate::mechanical_energy;
+use laparo_server::engine::scene::{DEFAULT_SCENE, Scene, Simulation};
+
+pub const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+pub const LIVER_5K: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh");
+
+/// The default scene with its material, tick, integrator and mesh replaced.
+pub fn default_variant(
+    mesh_file: &str,
+    e: f64,
+    nu: f64,
+    tick_s: f64,
+    integrator: &str,
+) -> Simulation {
+    let text = DEFAULT_SCENE
+        .replace(
+            "file = \"builtin:liver.msh\"",
+            &format!("file = {mesh_file:?}"),
+        )
+        .replace("young_modulus = 4500.0", &format!("young_modulus = {e:?}"))
+        .replace("poisson_ratio = 0.45", &format!("poisson_ratio = {nu:?}"))
+        .replace("rate_hz = 60.0", &format!("rate_hz = {:?}", 1.0 / tick_s))
+        .replace(
+            "integrator = \"implicit\"",
+            &format!("integrator = {integrator:?}"),
+        );
+    Scene::parse(&text, "variant of default.toml", None)
+        .expect("variant parses")
+        .build()
+        .expect("variant builds")
+}
+
+/// Largest vertex distance between two position sets, m.
+pub fn max_distance(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max)
+}
+
+/// What a run to rest saw.
+#[derive(Debug)]
+pub struct Run {
+    pub finite: bool,
+    /// Largest total mechanical energy over the run, J (it starts at 0).
+    pub max_energy: f64,
+    /// Energy of the static equilibrium (its minimum), J.
+    pub static_energy: f64,
+    /// `max |x_T − x_static| / max |x_static − X|` at the end.
+    pub settle_error: f64,
+    pub substeps: u32,
+    pub cg_iterations: u64,
+}
+
+/// Runs `sim` from rest for `seconds`, then compares with its static equilibrium.
+pub fn run_to_rest(mut sim: Simulation, seconds: f64) -> Run {
+    let g = sim.gravity;
+    let ticks = (seconds / sim.dt).round() as usize;
+    let mut run = Run {
+        finite: true,
+        max_energy: 0.0,
+        static_energy: 0.0,
+        settle_error: 0.0,
+        substeps: 0,
+        cg_iterations: 0,
+    };
+    for _ in 0..ticks {
+        let r = sim.tick();
+        run.substeps = run.substeps.max(r.substeps);
+        run.cg_iterations += r.cg_iterations as u64;
+        let e = mechanical_energy(&sim.model, &sim.state, g);
+        run.finite &= e.is_finite()
+            && sim
+                .state
+                .x
+                .iter()
+                .all(|p| p.coords.iter().all(|c| c.is_finite()));
+        if !run.finite {
+            return run;
+        }
+        run.max_energy = run.max_energy.max(e);
+    }
+    let dynamic = sim.state.x.clone();
+    let mut reference = sim.scene.build().expect("scene rebuilds");
+    let report = reference.solve_static();
+    assert!(
+        report.converged,
+        "static reference did not converge: {report:?}"
+    );
+    run.static_energy = mechanical_energy(&reference.model, &reference.state, g);
+    run.settle_error = max_distance(&dynamic, &reference.state.x) / reference.max_displacement();
+    run
+}
