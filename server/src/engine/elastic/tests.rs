@@ -18,18 +18,53 @@ fn matrix_scale(k: &BlockMatrix) -> f64 {
 }
 
 #[test]
-fn stiffness_is_symmetric() {
+fn stored_stiffness_is_the_sum_of_the_element_tensors() {
+    // The product with the symmetric block storage equals the product assembled
+    // element by element, y = Σ_T K_T u_T, and single rows agree with it.
     let mesh = liver_mesh();
     let model = model_of(&mesh, 3000.0, 0.45);
-    let k = &model.stiffness;
-    let scale = matrix_scale(k);
-    for i in 0..k.rows() {
-        for b in k.row_start[i] as usize..k.row_start[i + 1] as usize {
-            let j = k.col[b];
-            let t = k.find(j, i as u32).expect("pattern is symmetric");
-            assert!((k.block[b] - k.block[t].transpose()).abs().max() <= 1e-13 * scale);
+    let mat = model.materials[0];
+    let n = mesh.vertex_count();
+    let u: Vec<_> = (0..n)
+        .map(|i| Vector3::new((i as f64).sin(), (0.3 * i as f64).cos(), 0.01 * i as f64))
+        .collect();
+    let mut expected = vec![Vector3::zeros(); n];
+    for &t in &mesh.tets {
+        let (g, v) = shape_gradients(&mesh.positions, t);
+        let k = tet_stiffness(&g, v, &mat);
+        for a in 0..4 {
+            for b in 0..4 {
+                expected[t[a] as usize] += k[a][b] * u[t[b] as usize];
+            }
         }
     }
+    let mut got = vec![Vector3::zeros(); n];
+    model.stiffness.mul(&u, &mut got);
+    let scale = expected.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    for i in 0..n {
+        assert!((got[i] - expected[i]).norm() <= 1e-12 * scale, "row {i}");
+        assert!(
+            (model.stiffness.row_times(i, &u) - expected[i]).norm() <= 1e-12 * scale,
+            "row {i}"
+        );
+    }
+    // Symmetry: vᵀ(K u) = uᵀ(K v).
+    let v: Vec<_> = (0..n)
+        .map(|i| Vector3::new(0.5, (i % 5) as f64, -(i as f64).cos()))
+        .collect();
+    let mut kv = vec![Vector3::zeros(); n];
+    model.stiffness.mul(&v, &mut kv);
+    let (a, b): (f64, f64) = (
+        v.iter().zip(&got).map(|(x, y)| x.dot(y)).sum(),
+        u.iter().zip(&kv).map(|(x, y)| x.dot(y)).sum(),
+    );
+    assert!((a - b).abs() <= 1e-12 * a.abs().max(b.abs()));
+    // get() sees K_ji = K_ijᵀ.
+    let [i, j] = mesh.edges[7];
+    assert_eq!(
+        model.stiffness.get(j, i).unwrap(),
+        model.stiffness.get(i, j).unwrap().transpose()
+    );
 }
 
 #[test]

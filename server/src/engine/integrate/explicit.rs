@@ -34,11 +34,12 @@ pub(super) fn step(
     }
     for s in 1..=substeps {
         state.displacement_into(model, &mut it.u);
+        model.stiffness.mul(&it.u, &mut it.f);
         for i in 0..state.x.len() {
             if imposed.is_imposed(i) {
                 continue;
             }
-            let f = -model.stiffness.row_times(i, &it.u);
+            let f = -it.f[i];
             let v = (state.v[i] + h * (gravity + f / model.mass[i])) * damp;
             state.v[i] = v;
             state.x[i] += h * v;
