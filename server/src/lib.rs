@@ -2,3 +2,5 @@
 //! as they land, the session, service and recording layers around it.
 
 pub mod engine;
+pub mod export;
+pub mod headless;

@@ -1,0 +1,3 @@
+//! Writing simulation results to files other tools read.
+
+pub mod vtu;

@@ -1,0 +1,122 @@
+//! VTK XML unstructured grid (`.vtu`), the format ParaView opens.
+//!
+//! The deformed volume mesh is written as ASCII: points at their current positions
+//! (m), tetrahedra (VTK cell type 10), point data `displacement` (m, three
+//! components) and cell data `von_mises_stress` (Pa) and `region` (the tetrahedron's
+//! physical tag).
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::Path;
+
+use crate::engine::elastic::{shape_gradients, tet_displacements, von_mises_stress};
+use crate::engine::scene::Simulation;
+
+/// VTK's cell type for a linear tetrahedron.
+const VTK_TETRA: u8 = 10;
+
+/// Von Mises stress of every tetrahedron in the simulation's current state, Pa.
+pub fn tet_von_mises(sim: &Simulation) -> Vec<f64> {
+    let model = &sim.model;
+    sim.mesh
+        .tets
+        .iter()
+        .enumerate()
+        .map(|(t, &tet)| {
+            let (g, _) = shape_gradients(&model.rest, tet);
+            let u = tet_displacements(&sim.state.x, &model.rest, tet);
+            von_mises_stress(&g, u, &model.materials[model.tet_material[t] as usize])
+        })
+        .collect()
+}
+
+/// Writes the simulation's current state to `path`.
+pub fn write_vtu(sim: &Simulation, path: &Path) -> io::Result<()> {
+    let file = File::create(path)?;
+    let mut w = BufWriter::new(file);
+    write_vtu_to(sim, &mut w)?;
+    w.flush()?;
+    w.into_inner().map_err(|e| e.into_error())?.sync_all()
+}
+
+/// Writes the simulation's current state as VTU to any writer.
+pub fn write_vtu_to(sim: &Simulation, w: &mut impl Write) -> io::Result<()> {
+    let (x, rest) = (&sim.state.x, &sim.model.rest);
+    let tets = &sim.mesh.tets;
+    writeln!(w, r#"<?xml version="1.0"?>"#)?;
+    writeln!(
+        w,
+        r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
+    )?;
+    writeln!(w, "  <UnstructuredGrid>")?;
+    writeln!(
+        w,
+        r#"    <Piece NumberOfPoints="{}" NumberOfCells="{}">"#,
+        x.len(),
+        tets.len()
+    )?;
+    writeln!(w, "      <Points>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Float64" NumberOfComponents="3" format="ascii">"#
+    )?;
+    for p in x {
+        writeln!(w, "{:e} {:e} {:e}", p.x, p.y, p.z)?;
+    }
+    writeln!(w, "        </DataArray>\n      </Points>\n      <Cells>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int64" Name="connectivity" format="ascii">"#
+    )?;
+    for t in tets {
+        writeln!(w, "{} {} {} {}", t[0], t[1], t[2], t[3])?;
+    }
+    writeln!(w, "        </DataArray>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int64" Name="offsets" format="ascii">"#
+    )?;
+    for k in 1..=tets.len() {
+        writeln!(w, "{}", 4 * k)?;
+    }
+    writeln!(w, "        </DataArray>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="UInt8" Name="types" format="ascii">"#
+    )?;
+    for _ in tets {
+        writeln!(w, "{VTK_TETRA}")?;
+    }
+    writeln!(w, "        </DataArray>\n      </Cells>")?;
+    writeln!(w, r#"      <PointData Vectors="displacement">"#)?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Float64" Name="displacement" NumberOfComponents="3" format="ascii">"#
+    )?;
+    for (p, r) in x.iter().zip(rest) {
+        let u = p - r;
+        writeln!(w, "{:e} {:e} {:e}", u.x, u.y, u.z)?;
+    }
+    writeln!(w, "        </DataArray>\n      </PointData>")?;
+    writeln!(w, r#"      <CellData Scalars="von_mises_stress">"#)?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Float64" Name="von_mises_stress" format="ascii">"#
+    )?;
+    for s in tet_von_mises(sim) {
+        writeln!(w, "{s:e}")?;
+    }
+    writeln!(w, "        </DataArray>")?;
+    writeln!(
+        w,
+        r#"        <DataArray type="Int32" Name="region" format="ascii">"#
+    )?;
+    for tag in &sim.mesh.tet_tags {
+        writeln!(w, "{tag}")?;
+    }
+    writeln!(
+        w,
+        "        </DataArray>\n      </CellData>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>"
+    )?;
+    Ok(())
+}

@@ -1,0 +1,66 @@
+//! Stepping a scene with no network: `laparo-server run`.
+
+use std::time::{Duration, Instant};
+
+use crate::engine::integrate::StepReport;
+use crate::engine::scene::Simulation;
+
+/// What a headless run did, with its timing.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    pub ticks: u64,
+    /// Simulated time, s.
+    pub sim_seconds: f64,
+    /// Wall time spent in ticks, s.
+    pub wall_seconds: f64,
+    /// Median, 99th percentile and largest tick time, s.
+    pub tick_median: f64,
+    pub tick_p99: f64,
+    pub tick_max: f64,
+    /// Largest explicit substep count in a tick.
+    pub max_substeps: u32,
+    /// Mean CG iterations per tick.
+    pub mean_cg_iterations: f64,
+    /// Ticks whose solve stopped at the iteration cap.
+    pub unconverged: u64,
+    /// Largest displacement at the end, m.
+    pub max_displacement: f64,
+}
+
+/// Runs `sim` for `seconds` of simulated time, calling `progress` about ten times.
+pub fn run(
+    sim: &mut Simulation,
+    seconds: f64,
+    mut progress: impl FnMut(&Simulation, &StepReport),
+) -> RunSummary {
+    let ticks = (seconds / sim.dt).round().max(1.0) as u64;
+    let mut times = Vec::with_capacity(ticks as usize);
+    let (mut max_substeps, mut cg_total, mut unconverged) = (0, 0u64, 0);
+    let every = (ticks / 10).max(1);
+    for k in 1..=ticks {
+        let start = Instant::now();
+        let report = sim.tick();
+        times.push(start.elapsed());
+        max_substeps = max_substeps.max(report.substeps);
+        cg_total += report.cg_iterations as u64;
+        unconverged += u64::from(!report.converged);
+        if k % every == 0 || k == ticks {
+            progress(sim, &report);
+        }
+    }
+    let wall: Duration = times.iter().sum();
+    times.sort_unstable();
+    let at = |q: f64| times[((times.len() - 1) as f64 * q).round() as usize].as_secs_f64();
+    RunSummary {
+        ticks,
+        sim_seconds: ticks as f64 * sim.dt,
+        wall_seconds: wall.as_secs_f64(),
+        tick_median: at(0.5),
+        tick_p99: at(0.99),
+        tick_max: at(1.0),
+        max_substeps,
+        mean_cg_iterations: cg_total as f64 / ticks as f64,
+        unconverged,
+        max_displacement: sim.max_displacement(),
+    }
+}

@@ -1,0 +1,156 @@
+//! `laparo-server`: the laparo training server.
+//!
+//! `laparo-server run` steps a scene headless (no network) and can export the result
+//! for ParaView. Serving the gRPC contract arrives with the session and service work.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use laparo_server::engine::integrate::IntegratorKind;
+use laparo_server::engine::scene::Scene;
+use laparo_server::export::vtu::write_vtu;
+use laparo_server::headless;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "laparo-server",
+    version,
+    about = "laparo training server: a deformable liver for laparoscopic training"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Step a scene headless (no network), print progress and timing, optionally export.
+    Run(RunArgs),
+}
+
+#[derive(Args, Debug)]
+struct RunArgs {
+    /// Scene file (TOML); the embedded default scene if omitted.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Simulated seconds to run.
+    #[arg(long, default_value_t = 2.0, value_parser = positive_seconds, conflicts_with = "static_solve")]
+    seconds: f64,
+    /// Solve the static equilibrium instead of stepping in time.
+    #[arg(long = "static")]
+    static_solve: bool,
+    /// Write the final deformed volume mesh as VTK XML unstructured grid (.vtu).
+    #[arg(long, value_name = "OUT.vtu")]
+    export: Option<PathBuf>,
+}
+
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 1e6 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a duration in (0, 1e6] seconds"))
+    }
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run(args) => run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("laparo-server: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: RunArgs) -> Result<(), String> {
+    let scene = match &args.scene {
+        Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
+        None => Scene::default_scene(),
+    };
+    let built = Instant::now();
+    let mut sim = scene.build().map_err(|e| e.to_string())?;
+    println!(
+        "scene {}: {} vertices, {} tetrahedra, {} surface triangles, {} fixed; {:?} at {} Hz; built in {:.1} ms",
+        sim.scene.name,
+        sim.mesh.vertex_count(),
+        sim.mesh.tets.len(),
+        sim.mesh.surface.triangles.len(),
+        sim.fixed.len(),
+        sim.integrator.config().kind,
+        sim.scene.mechanics.rate_hz,
+        built.elapsed().as_secs_f64() * 1e3,
+    );
+    if sim.integrator.config().kind == IntegratorKind::Explicit {
+        println!(
+            "explicit: {} substeps per tick (stability bound of mesh and material)",
+            sim.integrator.explicit_substeps(sim.dt)
+        );
+    }
+    if args.static_solve {
+        if sim.fixed.len() < 3 {
+            return Err(format!(
+                "scene {}: a static solve needs fixed vertices (`fixed` in the scene)",
+                sim.scene.name
+            ));
+        }
+        let start = Instant::now();
+        let report = sim.solve_static();
+        println!(
+            "static: {} CG iterations, relative residual {:.1e}{}, {:.1} ms; largest displacement {:.3} mm",
+            report.cg_iterations,
+            report.relative_residual,
+            if report.converged {
+                ""
+            } else {
+                " (NOT converged: raise mechanics.cg_max_iterations)"
+            },
+            start.elapsed().as_secs_f64() * 1e3,
+            sim.max_displacement() * 1e3,
+        );
+    } else {
+        let summary = headless::run(&mut sim, args.seconds, |sim, report| {
+            println!(
+                "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}",
+                sim.tick,
+                sim.time,
+                sim.max_displacement() * 1e3,
+                report.substeps,
+                report.cg_iterations
+            );
+        });
+        println!(
+            "ran {} ticks ({:.3} s simulated) in {:.3} s: tick median {:.3} ms, p99 {:.3} ms, max {:.3} ms; {:.1}x real time",
+            summary.ticks,
+            summary.sim_seconds,
+            summary.wall_seconds,
+            summary.tick_median * 1e3,
+            summary.tick_p99 * 1e3,
+            summary.tick_max * 1e3,
+            summary.sim_seconds / summary.wall_seconds.max(1e-12),
+        );
+        println!(
+            "mean CG iterations per tick {:.1}; ticks at the iteration cap {}; largest displacement {:.3} mm",
+            summary.mean_cg_iterations,
+            summary.unconverged,
+            summary.max_displacement * 1e3
+        );
+    }
+    if let Some(path) = &args.export {
+        write_vtu(&sim, path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,130 @@
+//! `laparo-server run`, end to end: the binary's export reads back to exactly the
+//! state the library computes (the engine is deterministic and `{:e}` prints floats
+//! so that they parse back to the same bits), and bad input fails cleanly.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use laparo_server::engine::scene::Scene;
+use laparo_server::export::vtu::tet_von_mises;
+use laparo_server::headless;
+
+fn server() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_laparo-server"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("laparo-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// The numbers of the `<DataArray ... Name="{name}" ...>` block of a VTU file.
+fn data_array(vtu: &str, name: &str) -> Vec<f64> {
+    let start = vtu
+        .find(&format!("Name=\"{name}\""))
+        .unwrap_or_else(|| panic!("no array {name}"));
+    let body = &vtu[start..];
+    let body = &body[body.find('>').unwrap() + 1..body.find("</DataArray>").unwrap()];
+    body.split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn exported_state_matches_the_library_run_exactly() {
+    let out = temp("default.vtu");
+    let status = server()
+        .args(["run", "--seconds", "0.5", "--export"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&status.stdout);
+    assert!(stdout.contains("ran 30 ticks"), "{stdout}");
+    let vtu = std::fs::read_to_string(&out).unwrap();
+
+    let mut sim = Scene::default_scene().build().unwrap();
+    headless::run(&mut sim, 0.5, |_, _| {});
+    let disp = data_array(&vtu, "displacement");
+    assert_eq!(disp.len(), 3 * sim.mesh.vertex_count());
+    for (i, (x, r)) in sim.state.x.iter().zip(&sim.model.rest).enumerate() {
+        let u = x - r;
+        assert_eq!(
+            [disp[3 * i], disp[3 * i + 1], disp[3 * i + 2]],
+            [u.x, u.y, u.z],
+            "vertex {i}"
+        );
+    }
+    assert_eq!(data_array(&vtu, "von_mises_stress"), tet_von_mises(&sim));
+    let conn = data_array(&vtu, "connectivity");
+    assert_eq!(conn.len(), 4 * sim.mesh.tets.len());
+    assert!(vtu.contains(&format!(
+        "NumberOfPoints=\"{}\" NumberOfCells=\"{}\"",
+        sim.mesh.vertex_count(),
+        sim.mesh.tets.len()
+    )));
+    // The liver sags under gravity: some stress, some displacement, nothing absurd.
+    assert!(disp.iter().any(|&d| d != 0.0) && disp.iter().all(|d| d.abs() < 0.02));
+}
+
+#[test]
+fn static_solve_of_the_sofa_demo_runs() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/sofa-liver.toml");
+    let out = server()
+        .args(["run", "--static", "--scene", scene])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("static: "));
+}
+
+#[test]
+fn bad_input_fails_with_a_message_naming_it() {
+    let missing = server()
+        .args(["run", "--scene", "/no/such/scene.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(missing.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("/no/such/scene.toml"));
+
+    let bad = temp("bad.toml");
+    std::fs::write(&bad, "name = \"x\"\n[mesh]\nfile = \"builtin:liver.msh\"\n[material]\nyoung_modulus = 1.0\npoisson_ratio = 0.7\ndensity = 1.0\n").unwrap();
+    let out = server()
+        .args(["run", "--scene"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("material.poisson_ratio"));
+
+    let unwritable = server()
+        .args([
+            "run",
+            "--seconds",
+            "0.1",
+            "--export",
+            "/no/such/dir/out.vtu",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(unwritable.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&unwritable.stderr).contains("/no/such/dir/out.vtu"));
+
+    for args in [
+        &["run", "--seconds", "nan"][..],
+        &["run", "--seconds", "0"],
+        &["run", "--static", "--seconds", "1"],
+    ] {
+        let out = server().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+    }
+}
