@@ -12,12 +12,10 @@ use common::*;
 use laparo_server::engine::scene::Scene;
 
 fn sofa_scene(integrator: &str) -> Scene {
-    let text = std::fs::read_to_string(format!("{SCENES}/sofa-liver.toml")).unwrap();
-    let text = text.replace(
-        "integrator = \"implicit\"",
-        &format!("integrator = {integrator:?}"),
-    );
-    Scene::parse(&text, "sofa-liver.toml", Some(std::path::Path::new(SCENES))).unwrap()
+    let mut scene =
+        Scene::load(std::path::Path::new(&format!("{SCENES}/sofa-liver.toml"))).unwrap();
+    scene.mechanics.integrator = integrator_kind(integrator);
+    scene
 }
 
 #[test]

@@ -206,7 +206,7 @@ fn default_damping() -> f64 {
     10.0
 }
 fn default_cg_tolerance() -> f64 {
-    1e-6
+    1e-4
 }
 fn default_cg_max_iterations() -> u32 {
     1000

@@ -1,0 +1,81 @@
+//! Shared by the benchmarks: meshes and scene variants.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use laparo_server::engine::integrate::IntegratorKind;
+use laparo_server::engine::scene::{Scene, Simulation};
+
+/// A mesh of the scaling series: its label and where to find it.
+pub struct MeshCase {
+    pub label: &'static str,
+    pub file: String,
+}
+
+/// Where the large livers live: `LAPARO_MESH_DIR`, or `shared/data/liver` beside the
+/// repository (they are too large to ship in it).
+pub fn shared_mesh_dir() -> PathBuf {
+    std::env::var_os("LAPARO_MESH_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../../shared/data/liver"
+            ))
+        })
+}
+
+/// The meshes named, in order; those not found are reported and skipped.
+pub fn meshes(labels: &[&'static str]) -> Vec<MeshCase> {
+    let mut out = Vec::new();
+    for &label in labels {
+        let file = match label {
+            "sofa-liver" => "builtin:liver.msh".to_string(),
+            "liver-5k" => concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh").to_string(),
+            other => {
+                let path = shared_mesh_dir().join(format!("{other}.msh"));
+                if !path.exists() {
+                    eprintln!(
+                        "skipping {other}: {} not found (set LAPARO_MESH_DIR)",
+                        path.display()
+                    );
+                    continue;
+                }
+                path.display().to_string()
+            }
+        };
+        out.push(MeshCase { label, file });
+    }
+    out
+}
+
+/// The default scene on another mesh, with another integrator and CG tolerance.
+pub fn scene(mesh_file: &str, integrator: IntegratorKind, cg_tolerance: f64) -> Scene {
+    let mut scene = Scene::default_scene();
+    scene.mesh.file = mesh_file.to_string();
+    scene.mechanics.integrator = integrator;
+    scene.mechanics.cg_tolerance = cg_tolerance;
+    scene.mechanics.cg_max_iterations = 20_000;
+    scene
+}
+
+pub fn build(scene: &Scene) -> Simulation {
+    scene.build().expect("variant builds")
+}
+
+/// Median of a sample.
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Seconds since `t`.
+pub fn since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}

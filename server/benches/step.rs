@@ -1,0 +1,65 @@
+//! Step time of each integrator against mesh size.
+//!
+//! `cargo bench -p laparo-server --bench step`
+//!
+//! The default scene (liver at 0.19 m, E = 4.5 kPa, ν = 0.45, gravity, 60 Hz ticks,
+//! held at its upper face and underside) on meshes from 596 to 309k tetrahedra,
+//! explicit and implicit (CG tolerance 1e-4, the default), from rest: the ticks measured are the
+//! gravity transient, the busiest part of the run for CG. One core. Reports the median
+//! tick time, ticks per second, substeps or CG iterations per tick (median), and the
+//! memory the model and integrator hold.
+
+mod common;
+
+use std::time::Instant;
+
+use common::*;
+use laparo_server::engine::integrate::IntegratorKind;
+
+fn main() {
+    let labels = [
+        "sofa-liver",
+        "liver-5k",
+        "liver-20k",
+        "liver-80k",
+        "liver-300k",
+    ];
+    println!(
+        "| mesh | vertices | tets | integrator | median tick (ms) | ticks/s | substeps/tick | CG its/tick | memory (MB) | ticks timed |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for case in meshes(&labels) {
+        for integrator in [IntegratorKind::Explicit, IntegratorKind::Implicit] {
+            let scene = scene(&case.file, integrator, 1e-4);
+            let mut sim = build(&scene);
+            let memory = sim.model.heap_bytes()
+                + sim.integrator.heap_bytes()
+                + 3 * 24 * sim.mesh.vertex_count();
+            // Time up to 60 ticks (1 s simulated) or about 8 s of wall time.
+            let (mut times, mut substeps, mut cg) = (Vec::new(), Vec::new(), Vec::new());
+            let budget = Instant::now();
+            while times.len() < 60 && (times.len() < 3 || since(budget) < 8.0) {
+                let t = Instant::now();
+                let r = sim.tick();
+                times.push(since(t));
+                substeps.push(r.substeps as f64);
+                cg.push(r.cg_iterations as f64);
+            }
+            let n = times.len();
+            let tick = median(&mut times);
+            println!(
+                "| {} | {} | {} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {:.1} | {} |",
+                case.label,
+                sim.mesh.vertex_count(),
+                sim.mesh.tets.len(),
+                integrator,
+                tick * 1e3,
+                1.0 / tick,
+                median(&mut substeps),
+                median(&mut cg),
+                memory as f64 / 1e6,
+                n
+            );
+        }
+    }
+}
