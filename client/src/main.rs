@@ -13,6 +13,8 @@ struct Cli {}
 
 fn main() {
     let _cli = Cli::parse();
-    eprintln!("laparo: no client command yet; run the simulation headless with `laparo-server run`");
+    eprintln!(
+        "laparo: no client command yet; run the simulation headless with `laparo-server run`"
+    );
     std::process::exit(2);
 }
