@@ -1006,10 +1006,20 @@ fn face_shared_by_three_tets() {
 
 #[test]
 fn open_boundary_declared_triangles() {
-    // One boundary face (3-4-5, of element 2) not declared.
-    let mut elements: Vec<&str> = TWO_BOUNDARY_V2[..5].to_vec();
-    elements.extend(TWO_TETS_V2);
-    let err = fail(&v2(&TWO_NODES, &elements));
+    // The declared triangles close around tetrahedron 1 only, and tetrahedron 2 sits
+    // apart from it: the declared surface does not enclose the volume.
+    let nodes = [
+        "1 0 0 0", "2 1 0 0", "3 0 1 0", "4 0 0 1", "5 5 0 0", "6 6 0 0", "7 5 1 0", "8 5 0 1",
+    ];
+    let elements = [
+        "11 2 2 7 7 1 3 2",
+        "12 2 2 7 7 1 2 4",
+        "13 2 2 7 7 1 4 3",
+        "14 2 2 7 7 2 3 4",
+        "1 4 2 1 1 1 2 3 4",
+        "2 4 2 1 1 5 6 7 8",
+    ];
+    let err = fail(&v2(&nodes, &elements));
     assert!(
         matches!(
             err.kind,
@@ -1017,7 +1027,16 @@ fn open_boundary_declared_triangles() {
         ),
         "{err}"
     );
-    assert_eq!(err.line, Some(v2_element_line(5, 6)));
+    assert_eq!(err.line, Some(v2_element_line(8, 5)));
+
+    // Declared patches that do not close are tags on part of the boundary, not a
+    // statement of all of it: five of the six faces load, tagged, the sixth untagged.
+    let mut elements: Vec<&str> = TWO_BOUNDARY_V2[..5].to_vec();
+    elements.extend(TWO_TETS_V2);
+    let mesh = load(&v2(&TWO_NODES, &elements));
+    let mut tags = mesh.surface.triangle_tags.clone();
+    tags.sort();
+    assert_eq!(tags, [0, 7, 7, 7, 7, 7]);
 
     // A declared triangle that is an interior face.
     let mut elements: Vec<&str> = TWO_BOUNDARY_V2.to_vec();

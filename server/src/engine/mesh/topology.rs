@@ -354,8 +354,14 @@ pub(super) fn build_surface(
 }
 
 /// Matches the declared surface triangles (any orientation) against the boundary
-/// triangles. Returns, for each boundary triangle, the index of its declared triangle
-/// (or `None` when nothing is declared at all).
+/// triangles. Returns, for each boundary triangle, the index of its declared triangle,
+/// or `None` where none is declared.
+///
+/// Every declared triangle must be a boundary face. When the declared triangles form a
+/// closed surface (every edge in exactly two of them) they are the file's statement of
+/// the whole boundary, so a boundary face they do not cover — a hole in the volume, a
+/// stray tetrahedron — is an open-boundary fault. When they are patches (a tagged
+/// "fixed" face, say) the rest of the boundary is simply untagged.
 pub(super) fn match_declared(
     surface: &Surface,
     declared: &[[u32; 3]],
@@ -403,9 +409,19 @@ pub(super) fn match_declared(
         return Err(Fault::NotBoundary { declared: d });
     }
     match missing {
-        Some(fault) => Err(fault),
-        None => Ok(result),
+        Some(fault) if is_closed(declared) => Err(fault),
+        _ => Ok(result),
     }
+}
+
+/// Whether every edge of `triangles` belongs to exactly two of them.
+fn is_closed(triangles: &[[u32; 3]]) -> bool {
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    edges.chunk_by(|a, b| a == b).all(|run| run.len() == 2)
 }
 
 /// Collects into `fan` the triangles around surface vertex `v`, starting at `start` and
