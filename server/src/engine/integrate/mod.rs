@@ -126,8 +126,6 @@ pub struct Integrator {
     f: Vec<Vector3<f64>>,
     /// Scratch buffer.
     w: Vec<Vector3<f64>>,
-    /// Velocities before the last implicit step, for the extrapolated warm start.
-    v_prev: Vec<Vector3<f64>>,
     /// Start positions of imposed vertices during explicit substeps.
     start: Vec<Point3<f64>>,
     cg: CgWorkspace,
@@ -146,7 +144,6 @@ impl Integrator {
             u: vec![Vector3::zeros(); n],
             f: vec![Vector3::zeros(); n],
             w: vec![Vector3::zeros(); n],
-            v_prev: vec![Vector3::zeros(); n],
             start: vec![Point3::origin(); n],
             cg: CgWorkspace::new(n),
             preconditioned_for: f64::NAN,
@@ -211,7 +208,7 @@ impl Integrator {
 
     /// Bytes of workspace held (for memory reports).
     pub fn heap_bytes(&self) -> usize {
-        (self.u.capacity() + self.f.capacity() + self.w.capacity() + self.v_prev.capacity()) * 24
+        (self.u.capacity() + self.f.capacity() + self.w.capacity()) * 24
             + self.start.capacity() * 24
             + self.cg.heap_bytes()
     }
