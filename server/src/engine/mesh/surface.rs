@@ -54,21 +54,11 @@ impl Surface {
     pub fn update_normals(&mut self, positions: &[Point3<f64>]) {
         self.vertex_normals.fill(Vector3::zeros());
         for tri in &self.triangles {
-            let p = tri.map(|v| positions[v as usize]);
-            let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
-            let double_area = cross.norm();
-            if !(double_area.is_finite() && double_area > 0.0) {
-                continue;
-            }
-            let normal = cross / double_area;
-            for k in 0..3 {
-                let u = p[(k + 1) % 3] - p[k];
-                let w = p[(k + 2) % 3] - p[k];
-                // |u × w| is twice the area at every corner, so the corner angle is
-                // atan2(2A, u · w): accurate for small and obtuse angles alike.
-                let angle = double_area.atan2(u.dot(&w));
-                let slot = self.surface_index[tri[k] as usize] as usize;
-                self.vertex_normals[slot] += normal * angle;
+            if let Some((normal, angles)) = corner_weights(tri, positions) {
+                for k in 0..3 {
+                    let slot = self.surface_index[tri[k] as usize] as usize;
+                    self.vertex_normals[slot] += normal * angles[k];
+                }
             }
         }
         for n in &mut self.vertex_normals {
@@ -81,6 +71,28 @@ impl Surface {
 
     /// The slot of volume vertex `v` in `vertices` (and `vertex_normals`), if it is on
     /// the surface.
+    /// The unit outward normal at surface vertex `v` for the given positions (the
+    /// angle-weighted average over its fan, as [`Self::update_normals`]), computed
+    /// from its own triangles only; zero if `v` is not on the surface or its fan is
+    /// degenerate.
+    pub fn vertex_normal(&self, v: u32, positions: &[Point3<f64>]) -> Vector3<f64> {
+        let Some(s) = self.slot(v) else {
+            return Vector3::zeros();
+        };
+        let mut n = Vector3::zeros();
+        for &t in self.triangles_around(s) {
+            let tri = &self.triangles[t as usize];
+            if let Some((normal, angles)) = corner_weights(tri, positions) {
+                let k = tri
+                    .iter()
+                    .position(|&w| w == v)
+                    .expect("a fan triangle holds its vertex");
+                n += normal * angles[k];
+            }
+        }
+        n.try_normalize(0.0).unwrap_or_else(Vector3::zeros)
+    }
+
     pub fn slot(&self, v: u32) -> Option<usize> {
         match self.surface_index.get(v as usize) {
             Some(&s) if s != u32::MAX => Some(s as usize),
@@ -94,4 +106,21 @@ impl Surface {
             self.vertex_triangle_offsets[s] as usize..self.vertex_triangle_offsets[s + 1] as usize;
         &self.vertex_triangles[range]
     }
+}
+
+/// The unit normal of a triangle and the angle at each of its corners, or `None` if it
+/// is degenerate. Weighting by the corner angle makes a vertex normal independent of
+/// how its fan is triangulated.
+fn corner_weights(tri: &[u32; 3], positions: &[Point3<f64>]) -> Option<(Vector3<f64>, [f64; 3])> {
+    let p = tri.map(|v| positions[v as usize]);
+    let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
+    let double_area = cross.norm();
+    if !(double_area.is_finite() && double_area > 0.0) {
+        return None;
+    }
+    // |u × w| is twice the area at every corner, so the corner angle is
+    // atan2(2A, u · w): accurate for small and obtuse angles alike.
+    let angles =
+        [0, 1, 2].map(|k| double_area.atan2((p[(k + 1) % 3] - p[k]).dot(&(p[(k + 2) % 3] - p[k]))));
+    Some((cross / double_area, angles))
 }

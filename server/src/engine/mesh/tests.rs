@@ -1219,3 +1219,26 @@ fn big_mesh_load_time() {
     eprintln!("update_normals: {:?}", start.elapsed());
     assert_eq!(check_surface(&mesh), 2);
 }
+
+#[test]
+fn local_vertex_normal_agrees_with_the_global_update() {
+    let mut mesh = load(LIVER);
+    // Deform it so the check is not on the load-time normals only.
+    let deformed: Vec<_> = mesh
+        .positions
+        .iter()
+        .map(|p| Point3::new(p.x * 1.1, p.y + 0.2 * p.x.sin(), p.z))
+        .collect();
+    mesh.surface.update_normals(&deformed);
+    for (slot, &v) in mesh.surface.vertices.iter().enumerate() {
+        let local = mesh.surface.vertex_normal(v, &deformed);
+        assert!(
+            (local - mesh.surface.vertex_normals[slot]).norm() < 1e-12,
+            "vertex {v}"
+        );
+    }
+    assert_eq!(
+        mesh.surface.vertex_normal(u32::MAX - 1, &deformed),
+        Vector3::zeros()
+    );
+}
