@@ -4,6 +4,7 @@
 //! stiffness), [`integrate`] (explicit, implicit, static), [`scene`] (what a scene
 //! declares, and building only that).
 
+pub mod contact;
 pub mod elastic;
 pub mod integrate;
 pub mod material;

@@ -1,6 +1,8 @@
 //! Shared by the engine's integration tests.
 #![allow(dead_code)]
 
+pub mod contact;
+
 use laparo_server::engine::integrate::{IntegratorKind, mechanical_energy};
 use laparo_server::engine::scene::{Scene, Simulation};
 

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use nalgebra::{Point3, Vector3};
 
 use super::{Scene, SceneError};
+use crate::engine::contact::{ContactStage, Instrument, InstrumentPose};
 use crate::engine::elastic::ElasticModel;
 use crate::engine::integrate::{
     Imposed, Integrator, IntegratorConfig, IntegratorKind, State, StepReport,
@@ -30,6 +31,10 @@ pub struct Simulation {
     pub dt: f64,
     /// The fixed vertices, sorted.
     pub fixed: Vec<u32>,
+    /// The scene's instruments, in declaration order.
+    pub instruments: Vec<Instrument>,
+    /// The contact stage; built only for a scene with instruments.
+    pub contact: Option<ContactStage>,
     /// Ticks done.
     pub tick: u64,
     /// Simulated time, s.
@@ -37,8 +42,17 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    /// Advances one mechanics tick.
+    /// Sets where instrument `k` is for the next tick; `None` takes it out of the body.
+    pub fn set_pose(&mut self, k: usize, pose: Option<InstrumentPose>) {
+        self.instruments[k].current = pose;
+    }
+
+    /// Advances one mechanics tick: held vertices follow their instruments, the elastic
+    /// step moves the liver, the contact stage keeps it out of the instruments.
     pub fn tick(&mut self) -> StepReport {
+        if let Some(contact) = &mut self.contact {
+            contact.before_step(&mut self.instruments, &self.state, &mut self.imposed);
+        }
         let report = self.integrator.step(
             &self.model,
             &mut self.state,
@@ -46,6 +60,16 @@ impl Simulation {
             self.gravity,
             self.dt,
         );
+        if let Some(contact) = &mut self.contact {
+            contact.after_step(
+                &mut self.instruments,
+                &self.mesh.surface,
+                &self.model,
+                &mut self.state,
+                &mut self.imposed,
+                self.dt,
+            );
+        }
         self.tick += 1;
         self.time += self.dt;
         report
@@ -109,6 +133,14 @@ impl Scene {
         };
         let integrator = Integrator::new(config, &model);
         let state = State::at_rest(&model);
+        let instruments: Vec<Instrument> = self
+            .instruments
+            .iter()
+            .map(|spec| Instrument::new(spec, mesh.vertex_count()))
+            .collect();
+        let pushes = instruments.iter().any(|i| i.tip_contact || i.shaft_contact);
+        let contact = pushes
+            .then(|| ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len()));
         Ok(Simulation {
             scene: self.clone(),
             gravity: Vector3::from(self.gravity),
@@ -119,6 +151,8 @@ impl Scene {
             imposed,
             integrator,
             fixed,
+            instruments,
+            contact,
             tick: 0,
             time: 0.0,
         })

@@ -320,6 +320,16 @@ impl Scene {
         if m.cg_max_iterations == 0 {
             return Err(self.invalid("mechanics.cg_max_iterations", "must be at least 1"));
         }
+        if self.instruments.len() > crate::engine::contact::stage::MAX_INSTRUMENTS {
+            return Err(self.invalid(
+                "instruments",
+                format!(
+                    "{} instruments; a scene has at most {}",
+                    self.instruments.len(),
+                    crate::engine::contact::stage::MAX_INSTRUMENTS
+                ),
+            ));
+        }
         let mut names = std::collections::HashSet::new();
         for (k, ins) in self.instruments.iter().enumerate() {
             let path = format!("instruments[{k}]");

@@ -1,0 +1,102 @@
+//! An instrument as the contact stage tracks it, and what each tick reports of it.
+
+use nalgebra::{Point3, Unit, Vector3};
+
+use super::pose::InstrumentPose;
+use crate::engine::scene::InstrumentSpec;
+
+/// One laparoscopic instrument: its geometry, its poses at the start and end of the
+/// tick, and the vertices it holds.
+#[derive(Clone, Debug)]
+pub struct Instrument {
+    pub name: String,
+    /// Shaft radius r, m.
+    pub radius: f64,
+    /// Shaft length l inside the body, m.
+    pub length: f64,
+    /// Trocar point, m; torques are taken about it.
+    pub trocar: Point3<f64>,
+    /// Whether the tip pushes tissue (the tip triangle onto the plane at distance r).
+    pub tip_contact: bool,
+    /// Whether the shaft pushes tissue. Without it the instrument is its tip alone,
+    /// a ball of radius r at `P`, as in a point-contact simulator.
+    pub shaft_contact: bool,
+    /// The pose at the end of the previous tick; `None` while out of the body.
+    pub previous: Option<InstrumentPose>,
+    /// The pose for this tick; `None` takes the instrument out of the body.
+    pub current: Option<InstrumentPose>,
+    /// Vertices this instrument holds (imposed on the elastic model).
+    pub held: Vec<u32>,
+    /// What the last tick found.
+    pub report: ContactReport,
+}
+
+/// What the contact stage found for one instrument in one tick: what the force model
+/// needs (paper §3).
+#[derive(Clone, Debug, Default)]
+pub struct ContactReport {
+    /// Edges that crossed the axis during the tick (§2.3).
+    pub colliding_edges: u32,
+    /// Vertices the stage moved this tick.
+    pub moved_vertices: u32,
+    /// The tip contact, if the axis met the surface within the shaft (§2.5).
+    pub tip: Option<TipContact>,
+    /// The surface point closest to the tip, with its normal (eq. 7), when the axis
+    /// does not meet the surface: where a tip contact would begin.
+    pub nearest: Option<(Point3<f64>, Unit<Vector3<f64>>)>,
+    /// Surface edges with a held vertex that lie along the shaft: the "neighbouring
+    /// edges" of the shaft plane (§3).
+    pub shaft_edges: Vec<u32>,
+    /// The tissue's force on the instrument, N: the sum of the elastic reactions
+    /// `−(K u)_i` on the vertices it holds.
+    pub reaction: Vector3<f64>,
+}
+
+/// The tip contact of §2.5.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TipContact {
+    /// `P_prox`: where the axis met the surface, m.
+    pub p_prox: Point3<f64>,
+    /// `n_prox` (eq. 7): the surface normal there, pointing out of the tissue.
+    pub n_prox: Unit<Vector3<f64>>,
+    /// The surface triangle that held `P_prox`.
+    pub triangle: u32,
+}
+
+impl Instrument {
+    /// An instrument of the scene, out of the body, for a mesh of `vertices` vertices.
+    pub fn new(spec: &InstrumentSpec, vertices: usize) -> Self {
+        Instrument {
+            name: spec.name.clone(),
+            radius: spec.radius,
+            length: spec.length,
+            trocar: Point3::from(spec.trocar),
+            tip_contact: spec.tip_contact,
+            shaft_contact: spec.shaft_contact,
+            previous: None,
+            current: None,
+            held: Vec::with_capacity(vertices),
+            report: ContactReport {
+                shaft_edges: Vec::with_capacity(vertices),
+                ..ContactReport::default()
+            },
+        }
+    }
+
+    /// The length of axis that pushes tissue: `l`, or 0 (the tip ball) without shaft
+    /// contact.
+    pub fn active_length(&self) -> f64 {
+        if self.shaft_contact { self.length } else { 0.0 }
+    }
+}
+
+impl ContactReport {
+    pub(super) fn clear(&mut self) {
+        self.colliding_edges = 0;
+        self.moved_vertices = 0;
+        self.tip = None;
+        self.nearest = None;
+        self.shaft_edges.clear();
+        self.reaction = Vector3::zeros();
+    }
+}

@@ -1,0 +1,111 @@
+//! Pushing edges and vertices out of the instrument (paper §2.6).
+//!
+//! The instrument is the set of points within `r` of its axis segment. A vertex closer
+//! than `r` goes straight away from its closest axis point to distance `r`: at right
+//! angles to `Z` along the shaft, radially from the tip beyond it. An edge closer than
+//! `r` (its closest point inside) is translated along the common perpendicular by the
+//! missing distance. Moving one edge can push a neighbour in, so the passes repeat
+//! until nothing moves (a few passes).
+//!
+//! A point exactly on the axis has no "away": a vertex at the tip goes ahead of it
+//! (`−Z`), one on the shaft goes along its surface normal taken ⊥ `Z`, and an edge
+//! through the axis goes along `Z × edge`. Supports never move; an edge with one fixed
+//! end moves by its free end.
+
+use nalgebra::{Point3, Vector3};
+
+use super::closest::{closest_edge_axis, closest_point_axis};
+use super::pose::{InstrumentPose, perpendicular};
+use super::stage::Scratch;
+use crate::engine::mesh::Surface;
+
+/// Passes over the candidates per tick.
+const MAX_PASSES: usize = 6;
+/// A point nearer the axis than this fraction of `r` has no reliable direction away
+/// from it and takes the fallback direction.
+const ON_AXIS: f64 = 1e-9;
+
+/// Pushes the candidate vertices and edges out of the instrument. Returns whether
+/// anything moved.
+pub(super) fn push_out(
+    s: &mut Scratch,
+    surface: &Surface,
+    pose: &InstrumentPose,
+    radius: f64,
+    length: f64,
+    x: &mut [Point3<f64>],
+) -> bool {
+    let z = pose.axis.into_inner();
+    let mut any = false;
+    for _ in 0..MAX_PASSES {
+        let mut moved = false;
+        for k in 0..s.vertices.len() {
+            let v = s.vertices[k];
+            let vi = v as usize;
+            if s.fixed[vi] {
+                continue;
+            }
+            let c = closest_point_axis(&x[vi], pose, length);
+            let d = c.distance();
+            if d >= radius {
+                continue;
+            }
+            let dir = if d > ON_AXIS * radius {
+                c.offset / d
+            } else if c.beta <= 0.0 {
+                -z
+            } else {
+                let n = surface.vertex_normal(v, x);
+                (n - z * n.dot(&z))
+                    .try_normalize(1e-6)
+                    .unwrap_or_else(|| perpendicular(&z).into_inner())
+            };
+            x[vi] = c.on_axis + dir * radius;
+            s.touch(v);
+            moved = true;
+        }
+        for k in 0..s.edges.len() {
+            let [a, b] = surface.edges[s.edges[k] as usize];
+            let (ai, bi) = (a as usize, b as usize);
+            if s.fixed[ai] && s.fixed[bi] {
+                continue;
+            }
+            let c = closest_edge_axis(&x[ai], &x[bi], pose, length);
+            let d = c.distance();
+            if d >= radius {
+                continue;
+            }
+            let dir: Vector3<f64> = if d > ON_AXIS * radius {
+                c.offset() / d
+            } else {
+                z.cross(&(x[bi] - x[ai]))
+                    .try_normalize(1e-12)
+                    .unwrap_or_else(|| perpendicular(&z).into_inner())
+            };
+            // Translate the edge so its closest point reaches r; with one end fixed the
+            // free end alone moves, by the missing distance over its weight there.
+            let missing = radius - d;
+            let (wa, wb) = (1.0 - c.alpha, c.alpha);
+            let (ma, mb) = match (s.fixed[ai], s.fixed[bi]) {
+                (false, false) => (missing, missing),
+                (true, false) => (0.0, missing / wb.max(0.5)),
+                (false, true) => (missing / wa.max(0.5), 0.0),
+                (true, true) => unreachable!("skipped above"),
+            };
+            if ma > 0.0 {
+                x[ai] += dir * ma;
+                s.touch(a);
+            }
+            if mb > 0.0 {
+                x[bi] += dir * mb;
+                s.touch(b);
+            }
+            moved = true;
+        }
+        any |= moved;
+        if !moved {
+            break;
+        }
+    }
+    any
+}

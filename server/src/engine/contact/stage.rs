@@ -1,0 +1,412 @@
+//! The contact stage of a tick: per instrument, colliding edges → confidence intervals
+//! → tip → push-out → which vertices the instrument holds.
+//!
+//! Around the elastic step:
+//! - [`ContactStage::before_step`]: the vertices an instrument holds follow its rigid
+//!   motion `R` (eq. 1) — their imposed targets become `R(x)` — and the tick's start
+//!   positions are kept;
+//! - the integrator advances the liver with those vertices imposed (free motion);
+//! - [`ContactStage::after_step`]: for each instrument in turn, the steps of §2.3–2.6
+//!   on the surface seen from the instrument, then the hold/release decision, then one
+//!   more push-out pass for every instrument so that a vertex pushed by one is not left
+//!   inside another.
+//!
+//! Holding and release. A vertex the stage moved is held: imposed on the elastic model
+//! at that position, so the deformation spreads into the liver. A held vertex the stage
+//! did not move this tick stays held while the tissue presses it against the
+//! instrument and is released when the tissue pulls it away: when its elastic reaction
+//! `−(K u)_i` has a positive component along the direction from the axis to the
+//! vertex. That is a unilateral contact: the instrument pushes, it never pulls, and
+//! when it withdraws the tissue relaxes.
+//!
+//! Why no marching from triangle to triangle (§2.3): the broad phase already returns
+//! every triangle whose motion in the instrument's frame comes within `r` of the axis
+//! segment, so every edge that can have crossed it is tested, at any speed. That is how
+//! this stage does not tunnel: an instrument crossing the whole liver in one tick finds
+//! every edge it crossed and stops each at its confidence interval.
+
+use nalgebra::{Point3, Vector3};
+
+use super::broadphase::{Box3, BroadPhase};
+use super::crossing::Crossing;
+use super::edges::stop_colliding_edges;
+use super::instrument::Instrument;
+use super::pose::rigid_motion;
+use super::push::push_out;
+use super::tip::{nearest_point, press_tip};
+use crate::engine::elastic::ElasticModel;
+use crate::engine::integrate::{Imposed, State};
+use crate::engine::mesh::Surface;
+
+/// Counters of the work the stage did, cumulative since it was built: they show which
+/// parts of the algorithm a scene exercises (a scene without shaft contact tests no
+/// edge; a scene without instruments builds no stage at all).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ContactStats {
+    /// Instrument-ticks processed.
+    pub instrument_ticks: u64,
+    /// Candidate triangles returned by the broad phase.
+    pub candidate_triangles: u64,
+    /// Edge–axis crossing tests (eq. 2–5).
+    pub edge_tests: u64,
+    /// Colliding edges found.
+    pub colliding_edges: u64,
+    /// Vertex moves made by the stage.
+    pub vertex_moves: u64,
+}
+
+/// Buffers of the stage, allocated once for the mesh.
+#[derive(Debug)]
+pub(super) struct Scratch {
+    /// Start positions of the tick in the current instrument's frame, `R(x_start)`.
+    pub rel_start: Vec<Point3<f64>>,
+    pub fixed: Vec<bool>,
+    /// Candidate triangles, edges and vertices for the current instrument.
+    pub triangles: Vec<u32>,
+    pub edges: Vec<u32>,
+    pub vertices: Vec<u32>,
+    pub colliding: Vec<(u32, Crossing)>,
+    pub interval: Vec<[f64; 2]>,
+    pub interval_vertices: Vec<u32>,
+    pub interval_mark: Vec<u32>,
+    edge_mark: Vec<u32>,
+    vertex_mark: Vec<u32>,
+    moved_mark: Vec<u32>,
+    /// Vertices moved for the current instrument.
+    pub moved: Vec<u32>,
+    /// Bumped for every instrument and pass, so marks never need clearing.
+    pub mark: u32,
+    pub stats: ContactStats,
+}
+
+impl Scratch {
+    /// Records that the stage moved vertex `v` for the current instrument.
+    pub fn touch(&mut self, v: u32) {
+        self.stats.vertex_moves += 1;
+        if self.moved_mark[v as usize] != self.mark {
+            self.moved_mark[v as usize] = self.mark;
+            self.moved.push(v);
+        }
+    }
+}
+
+/// The contact stage of a scene with instruments.
+#[derive(Debug)]
+pub struct ContactStage {
+    broadphase: Vec<BroadPhase>,
+    /// The three surface edges of each surface triangle.
+    triangle_edges: Vec<[u32; 3]>,
+    /// Positions at the start of the tick.
+    start: Vec<Point3<f64>>,
+    /// Bit `k` set: held by instrument `k`.
+    holders: Vec<u8>,
+    s: Scratch,
+}
+
+/// Instruments a stage handles: one bit each in `holders`.
+pub const MAX_INSTRUMENTS: usize = 8;
+
+impl ContactStage {
+    /// A stage for `instruments` on the surface of a mesh whose vertices `fixed` are
+    /// supports.
+    pub fn new(surface: &Surface, rest: &[Point3<f64>], fixed: &[u32], instruments: usize) -> Self {
+        assert!(
+            instruments <= MAX_INSTRUMENTS,
+            "the scene checks the instrument count"
+        );
+        let n = rest.len();
+        let edge_index = |a: u32, b: u32| {
+            surface
+                .edges
+                .binary_search(&[a.min(b), a.max(b)])
+                .expect("triangle edges are surface edges") as u32
+        };
+        let triangle_edges = surface
+            .triangles
+            .iter()
+            .map(|t| {
+                [
+                    edge_index(t[0], t[1]),
+                    edge_index(t[1], t[2]),
+                    edge_index(t[2], t[0]),
+                ]
+            })
+            .collect();
+        let mut fixed_mask = vec![false; n];
+        for &v in fixed {
+            fixed_mask[v as usize] = true;
+        }
+        let ntri = surface.triangles.len();
+        ContactStage {
+            broadphase: (0..instruments)
+                .map(|_| BroadPhase::new(surface, rest))
+                .collect(),
+            triangle_edges,
+            start: rest.to_vec(),
+            holders: vec![0; n],
+            s: Scratch {
+                rel_start: rest.to_vec(),
+                fixed: fixed_mask,
+                triangles: Vec::with_capacity(ntri),
+                edges: Vec::with_capacity(surface.edges.len()),
+                vertices: Vec::with_capacity(surface.vertices.len()),
+                colliding: Vec::with_capacity(surface.edges.len()),
+                interval: vec![[0.0, 1.0]; n],
+                interval_vertices: Vec::with_capacity(n),
+                interval_mark: vec![0; n],
+                edge_mark: vec![0; surface.edges.len()],
+                vertex_mark: vec![0; n],
+                moved_mark: vec![0; n],
+                moved: Vec::with_capacity(n),
+                mark: 0,
+                stats: ContactStats::default(),
+            },
+        }
+    }
+
+    /// Work counters since the stage was built.
+    pub fn stats(&self) -> ContactStats {
+        self.s.stats
+    }
+
+    /// Whether vertex `v` is held by any instrument.
+    pub fn is_held(&self, v: u32) -> bool {
+        self.holders[v as usize] != 0
+    }
+
+    /// Before the elastic step: held vertices follow their instrument's rigid motion,
+    /// and instruments that left the body let go of everything.
+    pub fn before_step(
+        &mut self,
+        instruments: &mut [Instrument],
+        state: &State,
+        imposed: &mut Imposed,
+    ) {
+        self.start.copy_from_slice(&state.x);
+        for (k, ins) in instruments.iter_mut().enumerate() {
+            match (ins.previous, ins.current) {
+                (Some(prev), Some(cur)) => {
+                    let r = rigid_motion(&prev, &cur);
+                    for &v in &ins.held {
+                        imposed.set(v, r.transform_point(&state.x[v as usize]));
+                    }
+                }
+                _ => {
+                    let bit = 1u8 << k;
+                    for &v in &ins.held {
+                        self.holders[v as usize] &= !bit;
+                        if self.holders[v as usize] == 0 && !self.s.fixed[v as usize] {
+                            imposed.release(v);
+                        }
+                    }
+                    ins.held.clear();
+                }
+            }
+        }
+    }
+
+    /// After the elastic step: the contact algorithm for every instrument, then holds
+    /// and releases, reactions and velocities. `dt` is the tick, s.
+    pub fn after_step(
+        &mut self,
+        instruments: &mut [Instrument],
+        surface: &Surface,
+        model: &ElasticModel,
+        state: &mut State,
+        imposed: &mut Imposed,
+        dt: f64,
+    ) {
+        for (k, ins) in instruments.iter_mut().enumerate() {
+            ins.report.clear();
+            let Some(pose) = ins.current else { continue };
+            self.s.stats.instrument_ticks += 1;
+            let prev = ins.previous.unwrap_or(pose);
+            let r = rigid_motion(&prev, &pose);
+            for &v in &surface.vertices {
+                self.s.rel_start[v as usize] = r.transform_point(&self.start[v as usize]);
+            }
+            let length = ins.active_length();
+            self.s.mark = self.s.mark.wrapping_add(1);
+            self.s.moved.clear();
+            self.gather(k, surface, &state.x, &pose, ins.radius, length, true);
+            if ins.shaft_contact {
+                ins.report.colliding_edges =
+                    stop_colliding_edges(&mut self.s, &surface.edges, &pose, length, &mut state.x);
+            }
+            if ins.tip_contact {
+                // Without a shaft the tip can only have gone through the surface along
+                // its own path this tick.
+                let reach = if ins.shaft_contact {
+                    ins.length
+                } else {
+                    (pose.tip - prev.tip).norm() + 2.0 * ins.radius
+                };
+                ins.report.tip =
+                    press_tip(&mut self.s, surface, &pose, ins.radius, reach, &mut state.x);
+            }
+            push_out(
+                &mut self.s,
+                surface,
+                &pose,
+                ins.radius,
+                length,
+                &mut state.x,
+            );
+            if ins.report.tip.is_none() {
+                ins.report.nearest = nearest_point(&self.s, surface, &pose, &state.x);
+            }
+            ins.report.moved_vertices = self.s.moved.len() as u32;
+            self.hold_and_release(k, ins, state, imposed);
+            self.collect_shaft_edges(ins, surface, state);
+        }
+        // One more push-out for every instrument, so that none is left inside another.
+        if instruments.len() > 1 {
+            for (k, ins) in instruments.iter_mut().enumerate() {
+                let Some(pose) = ins.current else { continue };
+                self.s.mark = self.s.mark.wrapping_add(1);
+                self.s.moved.clear();
+                let length = ins.active_length();
+                self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
+                if push_out(
+                    &mut self.s,
+                    surface,
+                    &pose,
+                    ins.radius,
+                    length,
+                    &mut state.x,
+                ) {
+                    self.hold_and_release(k, ins, state, imposed);
+                }
+            }
+        }
+        for ins in instruments.iter_mut() {
+            self.report_reaction(ins, model, state);
+            ins.previous = ins.current;
+        }
+        // Vertices the stage moved keep the velocity of their motion over the tick.
+        for v in 0..state.x.len() {
+            if self.holders[v] != 0 {
+                state.v[v] = (state.x[v] - self.start[v]) / dt;
+            }
+        }
+    }
+
+    /// Candidate triangles, edges and vertices for instrument `k`. With `refit`, the
+    /// broad phase is refitted to the tick's motion in the instrument's frame; without,
+    /// it is queried as it is with a margin of one radius for the pushes since.
+    #[allow(clippy::too_many_arguments)]
+    fn gather(
+        &mut self,
+        k: usize,
+        surface: &Surface,
+        x: &[Point3<f64>],
+        pose: &super::pose::InstrumentPose,
+        radius: f64,
+        length: f64,
+        refit: bool,
+    ) {
+        let s = &mut self.s;
+        if refit {
+            self.broadphase[k].update(surface, &s.rel_start, x);
+        }
+        let mut query = Box3::empty();
+        query.cover(&pose.tip);
+        query.cover(&pose.point_at(length));
+        let query = query.inflated(if refit { radius } else { 2.0 * radius });
+        s.triangles.clear();
+        self.broadphase[k].query(&query, &mut s.triangles);
+        s.stats.candidate_triangles += s.triangles.len() as u64;
+        s.edges.clear();
+        s.vertices.clear();
+        for &t in &s.triangles {
+            for e in self.triangle_edges[t as usize] {
+                if s.edge_mark[e as usize] != s.mark {
+                    s.edge_mark[e as usize] = s.mark;
+                    s.edges.push(e);
+                }
+            }
+            for v in surface.triangles[t as usize] {
+                if s.vertex_mark[v as usize] != s.mark {
+                    s.vertex_mark[v as usize] = s.mark;
+                    s.vertices.push(v);
+                }
+            }
+        }
+    }
+
+    /// Holds the vertices moved for instrument `k`; releases its other held vertices
+    /// that the tissue pulls away from it.
+    fn hold_and_release(
+        &mut self,
+        k: usize,
+        ins: &mut Instrument,
+        state: &State,
+        imposed: &mut Imposed,
+    ) {
+        let bit = 1u8 << k;
+        let pose = ins.current.expect("only instruments in the body hold");
+        let length = ins.active_length();
+        let holders = &mut self.holders;
+        let s = &self.s;
+        ins.held.retain(|&v| {
+            let vi = v as usize;
+            if s.moved_mark[vi] == s.mark {
+                return true;
+            }
+            let away = super::closest::closest_point_axis(&state.x[vi], &pose, length).offset;
+            let keep = state.reaction[vi].dot(&away) <= 0.0;
+            if !keep {
+                holders[vi] &= !bit;
+                if holders[vi] == 0 && !s.fixed[vi] {
+                    imposed.release(v);
+                }
+            }
+            keep
+        });
+        for &v in &s.moved {
+            let vi = v as usize;
+            if holders[vi] & bit == 0 {
+                holders[vi] |= bit;
+                ins.held.push(v);
+            }
+            imposed.set(v, state.x[vi]);
+        }
+    }
+
+    /// The tissue's force on the instrument: the elastic reactions on what it holds.
+    fn report_reaction(&self, ins: &mut Instrument, model: &ElasticModel, state: &State) {
+        let mut total = Vector3::zeros();
+        for &v in &ins.held {
+            let mut ku = Vector3::zeros();
+            model.stiffness.for_each_in_row(v as usize, |j, kij| {
+                ku += kij * (state.x[j] - model.rest[j])
+            });
+            total -= ku;
+        }
+        ins.report.reaction = total;
+    }
+
+    /// The shaft's neighbouring edges (§3): candidate edges with a held end that lie
+    /// along the shaft, within 1.5 r of it.
+    fn collect_shaft_edges(&self, ins: &mut Instrument, surface: &Surface, state: &State) {
+        let Some(pose) = ins.current else { return };
+        if !ins.shaft_contact {
+            return;
+        }
+        for &e in &self.s.edges {
+            let [a, b] = surface.edges[e as usize];
+            let held = |v: u32| self.holders[v as usize] != 0;
+            if held(a) || held(b) {
+                let c = super::closest::closest_edge_axis(
+                    &state.x[a as usize],
+                    &state.x[b as usize],
+                    &pose,
+                    ins.length,
+                );
+                if c.beta > 0.0 && c.distance() <= 1.5 * ins.radius {
+                    ins.report.shaft_edges.push(e);
+                }
+            }
+        }
+    }
+}

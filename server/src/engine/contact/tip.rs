@@ -1,0 +1,118 @@
+//! The tip (paper §2.5): the triangle under the tip goes onto a plane in front of it.
+//!
+//! `P_prox` is where the axis segment meets the surface nearest the tip (the ray from
+//! `P` toward the handle). Its normal `n_prox` (eq. 7) interpolates the vertex normals
+//! of its triangle at the current positions. The triangle's vertices are projected
+//! along `Z` onto the plane `𝒫` of normal `n_prox` through `P − r·n_prox`: at distance
+//! `r` from the tip, on the tissue's side. Moving them along `Z` keeps their shadow on
+//! the plane ⊥ `Z`, so no edge crosses the axis by it, and the axis leaves the triangle
+//! behind the tip. If the axis meets the surface again further up, the next triangle
+//! follows (a fold), a few times at most.
+//!
+//! A triangle seen nearly edge-on (`n·Z` small) would be thrown far along `Z`; below
+//! [`GRAZING`] the triangle's own face normal is used if it faces the instrument
+//! better, and if neither does the triangle is left to the push-out of §2.6.
+
+use nalgebra::{Point3, Unit, Vector3};
+
+use super::closest::{closest_point_triangle, interpolated_normal, ray_triangle};
+use super::instrument::TipContact;
+use super::pose::InstrumentPose;
+use super::stage::Scratch;
+use crate::engine::mesh::Surface;
+
+/// `n·Z` below which a plane is too oblique to project onto along `Z`: at 0.2
+/// (78° from the axis) a vertex moves at most 5× its distance to the plane.
+const GRAZING: f64 = 0.2;
+/// Triangles met one after another along the axis (folds) handled per tick.
+const MAX_LAYERS: usize = 4;
+
+/// Presses the triangles the axis meets within `reach` of the tip onto the tip plane.
+/// Returns the first contact, if any.
+pub(super) fn press_tip(
+    s: &mut Scratch,
+    surface: &Surface,
+    pose: &InstrumentPose,
+    radius: f64,
+    reach: f64,
+    x: &mut [Point3<f64>],
+) -> Option<TipContact> {
+    let z = pose.axis.into_inner();
+    let mut first = None;
+    for _ in 0..MAX_LAYERS {
+        let mut best: Option<(f64, u32, [f64; 3])> = None;
+        for &t in &s.triangles {
+            let tri = surface.triangles[t as usize].map(|v| x[v as usize]);
+            if let Some(hit) = ray_triangle(&pose.tip, &z, &tri)
+                && hit.t <= reach
+                && best.is_none_or(|b| hit.t < b.0)
+            {
+                best = Some((hit.t, t, hit.barycentric));
+            }
+        }
+        let (depth, t, bary) = best?;
+        let tri = surface.triangles[t as usize];
+        let normals = tri.map(|v| surface.vertex_normal(v, x));
+        let p_prox = pose.tip + z * depth;
+        let face = {
+            let p = tri.map(|v| x[v as usize]);
+            Unit::try_new((p[1] - p[0]).cross(&(p[2] - p[0])), 0.0)
+        };
+        let n = match interpolated_normal(&bary, &normals) {
+            Some(n) if n.dot(&z) >= GRAZING => Some(n),
+            other => face
+                .filter(|f| f.dot(&z) >= GRAZING)
+                .or(other.filter(|n| n.dot(&z) > 0.0)),
+        };
+        let Some(n) = n else {
+            first = first.or(Some(TipContact {
+                p_prox,
+                n_prox: face.unwrap_or(pose.axis),
+                triangle: t,
+            }));
+            break;
+        };
+        first = first.or(Some(TipContact {
+            p_prox,
+            n_prox: n,
+            triangle: t,
+        }));
+        if n.dot(&z) < GRAZING {
+            break;
+        }
+        let q = pose.tip - n.into_inner() * radius;
+        for v in tri {
+            let vi = v as usize;
+            if s.fixed[vi] {
+                continue;
+            }
+            let along = (q - x[vi]).dot(&n) / n.dot(&z);
+            if along < 0.0 {
+                x[vi] += z * along;
+                s.touch(v);
+            }
+        }
+    }
+    first
+}
+
+/// The surface point nearest the tip among the candidate triangles, with its normal.
+pub(super) fn nearest_point(
+    s: &Scratch,
+    surface: &Surface,
+    pose: &InstrumentPose,
+    x: &[Point3<f64>],
+) -> Option<(Point3<f64>, Unit<Vector3<f64>>)> {
+    let mut best: Option<(f64, Point3<f64>, u32, [f64; 3])> = None;
+    for &t in &s.triangles {
+        let tri = surface.triangles[t as usize];
+        let c = closest_point_triangle(&pose.tip, &tri.map(|v| x[v as usize]));
+        let d = (c.point - pose.tip).norm();
+        if best.is_none_or(|b| d < b.0) {
+            best = Some((d, c.point, t, c.barycentric));
+        }
+    }
+    let (_, point, t, bary) = best?;
+    let normals = surface.triangles[t as usize].map(|v| surface.vertex_normal(v, x));
+    interpolated_normal(&bary, &normals).map(|n| (point, n))
+}
