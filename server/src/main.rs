@@ -12,6 +12,7 @@ use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::export::vtu::write_vtu;
 use laparo_server::headless;
+use laparo_server::headless::trajectory::Trajectory;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -35,9 +36,12 @@ struct RunArgs {
     /// Scene file (TOML); the embedded default scene if omitted.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// Simulated seconds to run.
-    #[arg(long, default_value_t = 2.0, value_parser = positive_seconds, conflicts_with = "static_solve")]
-    seconds: f64,
+    /// Simulated seconds to run [default: the trajectory's length, or 2].
+    #[arg(long, value_parser = positive_seconds, conflicts_with = "static_solve")]
+    seconds: Option<f64>,
+    /// Drive the instruments from a CSV file: t, instrument, tip x y z, axis x y z (SI).
+    #[arg(long, value_name = "FILE.csv", conflicts_with = "static_solve")]
+    trajectory: Option<PathBuf>,
     /// Solve the static equilibrium instead of stepping in time.
     #[arg(long = "static")]
     static_solve: bool,
@@ -82,6 +86,21 @@ fn run(args: RunArgs) -> Result<(), String> {
     };
     let built = Instant::now();
     let mut sim = scene.build().map_err(|e| e.to_string())?;
+    let script = match &args.trajectory {
+        Some(path) => {
+            let traj = Trajectory::load(path).map_err(|e| e.to_string())?;
+            let names: Vec<&str> = sim.instruments.iter().map(|i| i.name.as_str()).collect();
+            let tracks = traj
+                .match_instruments(&names, &path.display().to_string())
+                .map_err(|e| e.to_string())?;
+            Some((traj, tracks))
+        }
+        None => None,
+    };
+    let seconds = args.seconds.unwrap_or(match &script {
+        Some((traj, _)) => traj.end_time().max(1e-3),
+        None => 2.0,
+    });
     println!(
         "scene {}: {} vertices, {} tetrahedra, {} surface triangles, {} fixed; {:?} at {} Hz; built in {:.1} ms",
         sim.scene.name,
@@ -121,9 +140,19 @@ fn run(args: RunArgs) -> Result<(), String> {
             sim.max_displacement() * 1e3,
         );
     } else {
-        let summary = headless::run(&mut sim, args.seconds, |sim, report| {
+        let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
+        let summary = headless::run_scripted(&mut sim, seconds, script, |sim, report| {
+            let mut contact = String::new();
+            for ins in sim.instruments.iter().filter(|i| i.current.is_some()) {
+                contact += &format!(
+                    "  {}: {} held, {:.3} N",
+                    ins.name,
+                    ins.held.len(),
+                    ins.report.reaction.norm()
+                );
+            }
             println!(
-                "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}",
+                "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
                 sim.tick,
                 sim.time,
                 sim.max_displacement() * 1e3,

@@ -128,3 +128,47 @@ fn bad_input_fails_with_a_message_naming_it() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
     }
 }
+
+#[test]
+fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
+    let csv = temp("press.csv");
+    std::fs::write(
+        &csv,
+        "t,instrument,tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n\
+         0.0, left, 0.0, 0.0, 0.09, 0, 0, 1\n\
+         0.5, left, 0.0, 0.0, 0.055, 0, 0, 1\n\
+         1.0, left, 0.0, 0.0, 0.055, 0, 0, 1\n",
+    )
+    .unwrap();
+    let out = server()
+        .args(["run", "--trajectory"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The run lasts as long as the trajectory, and the instrument holds tissue at the end.
+    assert!(stdout.contains("ran 60 ticks"), "{stdout}");
+    let last = stdout
+        .lines()
+        .filter(|l| l.starts_with("tick"))
+        .last()
+        .unwrap();
+    assert!(
+        last.contains("left: ") && !last.contains("left: 0 held"),
+        "{last}"
+    );
+
+    std::fs::write(&csv, "0.0, scalpel, 0, 0, 0.09, 0, 0, 1\n").unwrap();
+    let out = server()
+        .args(["run", "--trajectory"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`scalpel`"));
+}

@@ -1,5 +1,7 @@
 //! Stepping a scene with no network: `laparo-server run`.
 
+pub mod trajectory;
+
 use std::time::{Duration, Instant};
 
 use crate::engine::integrate::StepReport;
@@ -31,6 +33,18 @@ pub struct RunSummary {
 pub fn run(
     sim: &mut Simulation,
     seconds: f64,
+    progress: impl FnMut(&Simulation, &StepReport),
+) -> RunSummary {
+    run_scripted(sim, seconds, None, progress)
+}
+
+/// Runs `sim` with its instruments driven by `script` (the track of each scene
+/// instrument, as [`trajectory::Trajectory::match_instruments`] gives them): before
+/// each tick every instrument is put where its track is at the end of that tick.
+pub fn run_scripted(
+    sim: &mut Simulation,
+    seconds: f64,
+    script: Option<(&trajectory::Trajectory, &[Option<usize>])>,
     mut progress: impl FnMut(&Simulation, &StepReport),
 ) -> RunSummary {
     let ticks = (seconds / sim.dt).round().max(1.0) as u64;
@@ -38,6 +52,12 @@ pub fn run(
     let (mut max_substeps, mut cg_total, mut unconverged) = (0, 0u64, 0);
     let every = (ticks / 10).max(1);
     for k in 1..=ticks {
+        if let Some((traj, tracks)) = script {
+            let t = sim.time + sim.dt;
+            for (i, track) in tracks.iter().enumerate() {
+                sim.set_pose(i, track.and_then(|tr| traj.tracks[tr].pose_at(t)));
+            }
+        }
         let start = Instant::now();
         let report = sim.tick();
         times.push(start.elapsed());
