@@ -153,11 +153,7 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     // The run lasts as long as the trajectory, and the instrument holds tissue at the end.
     assert!(stdout.contains("ran 60 ticks"), "{stdout}");
-    let last = stdout
-        .lines()
-        .filter(|l| l.starts_with("tick"))
-        .last()
-        .unwrap();
+    let last = stdout.lines().rfind(|l| l.starts_with("tick")).unwrap();
     assert!(
         last.contains("left: ") && !last.contains("left: 0 held"),
         "{last}"
