@@ -4,7 +4,8 @@
 mod common;
 
 use common::contact::*;
-use laparo_server::engine::scene::Scene;
+use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::scene::{Scene, Simulation};
 
 #[test]
 fn tip_press_deforms_holds_and_releases() {
@@ -66,5 +67,114 @@ fn tip_press_deforms_holds_and_releases() {
         "force while holding {:.4} N; stats {:?}",
         hi,
         sim.contact.as_ref().unwrap().stats()
+    );
+}
+
+/// Runs `frames` (one pose per instrument per tick) and checks the invariants after
+/// every tick.
+fn run_checked(
+    sim: &mut Simulation,
+    frames: impl IntoIterator<Item = Vec<Option<InstrumentPose>>>,
+) {
+    for poses in frames {
+        for (k, p) in poses.into_iter().enumerate() {
+            sim.set_pose(k, p);
+        }
+        sim.tick();
+        if let Err(e) = check_invariants(sim) {
+            panic!("{e}");
+        }
+    }
+}
+
+/// Linear interpolation of a tip between two points over `n` ticks.
+fn sweep(
+    from: [f64; 3],
+    to: [f64; 3],
+    axis: [f64; 3],
+    n: usize,
+) -> impl Iterator<Item = InstrumentPose> {
+    (1..=n).map(move |k| {
+        let s = k as f64 / n as f64;
+        pose([0, 1, 2].map(|a| from[a] + (to[a] - from[a]) * s), axis)
+    })
+}
+
+#[test]
+fn shaft_pressing_sideways_deforms_the_liver_with_the_tip_outside() {
+    // The shaft lies along x in front of the liver's front face, its tip beyond the
+    // liver's −x end, and moves 1 cm into the face: the gesture a point-contact
+    // simulator cannot make.
+    for shaft in [true, false] {
+        let mut scene = Scene::default_scene();
+        scene.instruments[0].shaft_contact = shaft;
+        let mut sim = scene.build().unwrap();
+        for _ in 0..60 {
+            sim.tick();
+        }
+        let before = sim.state.x.clone();
+        let front = front_point(&sim);
+        let (lo, _) = sim.mesh.bounding_box();
+        let tip_x = lo.x - 0.03;
+        let z0 = front.z + 0.008;
+        let frames = sweep(
+            [tip_x, front.y, z0],
+            [tip_x, front.y, z0 - 0.018],
+            [1.0, 0.0, 0.0],
+            30,
+        )
+        .chain(std::iter::repeat_n(
+            pose([tip_x, front.y, z0 - 0.018], [1.0, 0.0, 0.0]),
+            30,
+        ))
+        .map(|p| vec![Some(p), None]);
+        run_checked(&mut sim, frames);
+        let pushed = sim
+            .state
+            .x
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| b.z - a.z)
+            .fold(0.0, f64::max);
+        let stats = sim.contact.as_ref().unwrap().stats();
+        let report = &sim.instruments[0].report;
+        assert!(report.tip.is_none(), "the tip stays outside the liver");
+        if shaft {
+            assert!(
+                pushed > 0.005,
+                "the shaft pushed the face back by only {pushed} m"
+            );
+            assert!(stats.edge_tests > 0 && !sim.instruments[0].held.is_empty());
+            assert!(
+                report.reaction.z > 0.0,
+                "the tissue pushes the shaft back: {:?}",
+                report.reaction
+            );
+            assert!(!report.shaft_edges.is_empty());
+        } else {
+            // Without shaft contact the instrument is its tip alone: the shaft passes
+            // through the tissue, and the stage tests no edge at all.
+            assert!(pushed < 1e-3, "moved {pushed} m without shaft contact");
+            assert_eq!(stats.edge_tests, 0);
+            assert!(sim.instruments[0].held.is_empty());
+        }
+    }
+}
+
+#[test]
+fn a_scene_without_instruments_builds_no_contact_stage() {
+    let mut scene = Scene::default_scene();
+    scene.instruments.clear();
+    let mut sim = scene.build().unwrap();
+    sim.tick();
+    assert!(sim.contact.is_none() && sim.instruments.is_empty());
+    let mut scene = Scene::default_scene();
+    for ins in &mut scene.instruments {
+        ins.tip_contact = false;
+        ins.shaft_contact = false;
+    }
+    assert!(
+        scene.build().unwrap().contact.is_none(),
+        "instruments that push nothing need no stage"
     );
 }

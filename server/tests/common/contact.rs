@@ -89,3 +89,14 @@ pub fn front_point(sim: &Simulation) -> Point3<f64> {
         .max_by(|a, b| a.z.total_cmp(&b.z))
         .expect("the default liver has a front face")
 }
+
+/// The index of the vertex [`front_point`] returns.
+pub fn front_vertex(sim: &Simulation) -> u32 {
+    let p = front_point(sim);
+    *sim.mesh
+        .surface
+        .vertices
+        .iter()
+        .find(|&&v| sim.state.x[v as usize] == p)
+        .unwrap()
+}
