@@ -69,8 +69,8 @@ pub(super) fn stop_colliding_edges(
             if s.fixed[vi] {
                 continue;
             }
-            if s.interval_mark[vi] != s.mark {
-                s.interval_mark[vi] = s.mark;
+            if s.interval_mark[vi] != s.gather_mark {
+                s.interval_mark[vi] = s.gather_mark;
                 s.interval[vi] = [0.0, 1.0];
                 s.interval_vertices.push(v);
             }

@@ -1,7 +1,7 @@
 //! Pushing edges and vertices out of the instrument (paper §2.6).
 //!
 //! The instrument is the set of points within `r` of its axis segment. A vertex closer
-//! than `r` goes straight away from its closest axis point to distance `r`: at right
+//! than `r` goes straight away from its closest axis point to just beyond `r`: at right
 //! angles to `Z` along the shaft, radially from the tip beyond it. An edge closer than
 //! `r` (its closest point inside) is translated along the common perpendicular by the
 //! missing distance. Moving one edge can push a neighbour in, so the passes repeat
@@ -19,8 +19,13 @@ use super::pose::{InstrumentPose, perpendicular};
 use super::stage::Scratch;
 use crate::engine::mesh::Surface;
 
-/// Passes over the candidates per tick.
-const MAX_PASSES: usize = 6;
+/// Passes over the candidates per tick; they stop as soon as one moves nothing.
+const MAX_PASSES: usize = 16;
+/// Points are pushed to `r (1 + PUSH_MARGIN)`: 0.5 µm beyond a 5 mm shaft, invisible,
+/// and it lets the passes settle from outside — pushing exactly to `r` leaves
+/// neighbouring edges and vertices nudging each other back in by rounding and by
+/// each other's moves.
+const PUSH_MARGIN: f64 = 1e-4;
 /// A point nearer the axis than this fraction of `r` has no reliable direction away
 /// from it and takes the fallback direction.
 const ON_AXIS: f64 = 1e-9;
@@ -36,6 +41,7 @@ pub(super) fn push_out(
     x: &mut [Point3<f64>],
 ) -> bool {
     let z = pose.axis.into_inner();
+    let target = radius * (1.0 + PUSH_MARGIN);
     let mut any = false;
     for _ in 0..MAX_PASSES {
         let mut moved = false;
@@ -60,7 +66,7 @@ pub(super) fn push_out(
                     .try_normalize(1e-6)
                     .unwrap_or_else(|| perpendicular(&z).into_inner())
             };
-            x[vi] = c.on_axis + dir * radius;
+            x[vi] = c.on_axis + dir * target;
             s.touch(v);
             moved = true;
         }
@@ -84,7 +90,7 @@ pub(super) fn push_out(
             };
             // Translate the edge so its closest point reaches r; with one end fixed the
             // free end alone moves, by the missing distance over its weight there.
-            let missing = radius - d;
+            let missing = target - d;
             let (wa, wb) = (1.0 - c.alpha, c.alpha);
             let (ma, mb) = match (s.fixed[ai], s.fixed[bi]) {
                 (false, false) => (missing, missing),

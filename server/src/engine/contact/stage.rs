@@ -31,7 +31,7 @@ use super::broadphase::{Box3, BroadPhase};
 use super::crossing::Crossing;
 use super::edges::stop_colliding_edges;
 use super::instrument::Instrument;
-use super::pose::rigid_motion;
+use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
 use super::tip::{nearest_point, press_tip};
 use crate::engine::elastic::ElasticModel;
@@ -76,6 +76,8 @@ pub(super) struct Scratch {
     pub moved: Vec<u32>,
     /// Bumped for every instrument and pass, so marks never need clearing.
     pub mark: u32,
+    /// Bumped for every gathering of candidates (and every set of intervals).
+    pub gather_mark: u32,
     pub stats: ContactStats,
 }
 
@@ -98,6 +100,10 @@ pub struct ContactStage {
     triangle_edges: Vec<[u32; 3]>,
     /// Positions at the start of the tick.
     start: Vec<Point3<f64>>,
+    /// Where the elastic step put the surface vertices (the end of their free motion).
+    end: Vec<Point3<f64>>,
+    /// Surface positions after the last sub-move.
+    current: Vec<Point3<f64>>,
     /// Bit `k` set: held by instrument `k`.
     holders: Vec<u8>,
     s: Scratch,
@@ -143,6 +149,8 @@ impl ContactStage {
                 .collect(),
             triangle_edges,
             start: rest.to_vec(),
+            end: rest.to_vec(),
+            current: rest.to_vec(),
             holders: vec![0; n],
             s: Scratch {
                 rel_start: rest.to_vec(),
@@ -159,6 +167,7 @@ impl ContactStage {
                 moved_mark: vec![0; n],
                 moved: Vec::with_capacity(n),
                 mark: 0,
+                gather_mark: 0,
                 stats: ContactStats::default(),
             },
         }
@@ -221,28 +230,60 @@ impl ContactStage {
             let Some(pose) = ins.current else { continue };
             self.s.stats.instrument_ticks += 1;
             let prev = ins.previous.unwrap_or(pose);
-            let r = rigid_motion(&prev, &pose);
-            for &v in &surface.vertices {
-                self.s.rel_start[v as usize] = r.transform_point(&self.start[v as usize]);
-            }
             let length = ins.active_length();
             self.s.mark = self.s.mark.wrapping_add(1);
             self.s.moved.clear();
-            self.gather(k, surface, &state.x, &pose, ins.radius, length, true);
-            if ins.shaft_contact {
-                ins.report.colliding_edges =
-                    stop_colliding_edges(&mut self.s, &surface.edges, &pose, length, &mut state.x);
+            for &v in &surface.vertices {
+                self.end[v as usize] = state.x[v as usize];
+                self.current[v as usize] = self.start[v as usize];
             }
-            if ins.tip_contact {
-                // Without a shaft the tip can only have gone through the surface along
-                // its own path this tick.
-                let reach = if ins.shaft_contact {
-                    ins.length
-                } else {
-                    (pose.tip - prev.tip).norm() + 2.0 * ins.radius
-                };
-                ins.report.tip =
-                    press_tip(&mut self.s, surface, &pose, ins.radius, reach, &mut state.x);
+            let bit = 1u8 << k;
+            let moves = sub_moves(&prev, &pose);
+            for i in 1..=moves {
+                let from = interpolate(&prev, &pose, (i - 1) as f64 / moves as f64);
+                let to = interpolate(&prev, &pose, i as f64 / moves as f64);
+                let r = rigid_motion(&from, &to);
+                let f = i as f64 / moves as f64;
+                for &v in &surface.vertices {
+                    let vi = v as usize;
+                    self.s.rel_start[vi] = r.transform_point(&self.current[vi]);
+                    // What this instrument holds follows it; the rest moves on its free
+                    // motion, split like the instrument's.
+                    let follows =
+                        self.holders[vi] & bit != 0 || self.s.moved_mark[vi] == self.s.mark;
+                    state.x[vi] = if follows {
+                        self.s.rel_start[vi]
+                    } else {
+                        self.start[vi] + (self.end[vi] - self.start[vi]) * f
+                    };
+                }
+                self.gather(k, surface, &state.x, &to, ins.radius, length, true);
+                if ins.shaft_contact {
+                    ins.report.colliding_edges += stop_colliding_edges(
+                        &mut self.s,
+                        &surface.edges,
+                        &to,
+                        length,
+                        &mut state.x,
+                    );
+                }
+                if ins.tip_contact {
+                    // Without a shaft the tip can only have gone through the surface
+                    // along its own path.
+                    let reach = if ins.shaft_contact {
+                        ins.length
+                    } else {
+                        (to.tip - from.tip).norm() + 2.0 * ins.radius
+                    };
+                    let tip = press_tip(&mut self.s, surface, &to, ins.radius, reach, &mut state.x);
+                    ins.report.tip = tip.or(ins.report.tip);
+                }
+                if i < moves {
+                    push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
+                    for &v in &surface.vertices {
+                        self.current[v as usize] = state.x[v as usize];
+                    }
+                }
             }
             push_out(
                 &mut self.s,
@@ -300,11 +341,12 @@ impl ContactStage {
         k: usize,
         surface: &Surface,
         x: &[Point3<f64>],
-        pose: &super::pose::InstrumentPose,
+        pose: &InstrumentPose,
         radius: f64,
         length: f64,
         refit: bool,
     ) {
+        self.s.gather_mark = self.s.gather_mark.wrapping_add(1);
         let s = &mut self.s;
         if refit {
             self.broadphase[k].update(surface, &s.rel_start, x);
@@ -320,14 +362,14 @@ impl ContactStage {
         s.vertices.clear();
         for &t in &s.triangles {
             for e in self.triangle_edges[t as usize] {
-                if s.edge_mark[e as usize] != s.mark {
-                    s.edge_mark[e as usize] = s.mark;
+                if s.edge_mark[e as usize] != s.gather_mark {
+                    s.edge_mark[e as usize] = s.gather_mark;
                     s.edges.push(e);
                 }
             }
             for v in surface.triangles[t as usize] {
-                if s.vertex_mark[v as usize] != s.mark {
-                    s.vertex_mark[v as usize] = s.mark;
+                if s.vertex_mark[v as usize] != s.gather_mark {
+                    s.vertex_mark[v as usize] = s.gather_mark;
                     s.vertices.push(v);
                 }
             }
@@ -409,4 +451,27 @@ impl ContactStage {
             }
         }
     }
+}
+
+/// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
+/// on a straight line in the instrument's frame while the instrument turns about its
+/// tip; a point at distance `L` from the tip really sweeps an arc that leaves that
+/// chord by `L θ²/8`, 46 µm at the end of a 0.3 m shaft for θ = 2°: far below `r`, so
+/// no crossing is missed. A translation alone is exact in one move.
+const MAX_TURN: f64 = 2.0 * std::f64::consts::PI / 180.0;
+
+/// How many sub-moves the motion from `a` to `b` needs.
+fn sub_moves(a: &InstrumentPose, b: &InstrumentPose) -> usize {
+    let angle = a.axis.angle(&b.axis);
+    (angle / MAX_TURN).ceil().max(1.0) as usize
+}
+
+/// The pose a fraction `f` of the way from `a` to `b`: the tip on the straight line, the
+/// axis on the great circle (a half-turn keeps the nearer end's axis).
+fn interpolate(a: &InstrumentPose, b: &InstrumentPose, f: f64) -> InstrumentPose {
+    let axis = a
+        .axis
+        .try_slerp(&b.axis, f, 1e-12)
+        .unwrap_or(if f < 0.5 { a.axis } else { b.axis });
+    InstrumentPose::new(a.tip + (b.tip - a.tip) * f, axis)
 }
