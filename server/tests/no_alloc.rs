@@ -1,27 +1,38 @@
-//! A mechanics step allocates nothing: every integrator's buffers are allocated when
-//! it is built. A counting global allocator sees every allocation of this test binary.
+//! A mechanics step allocates nothing: every integrator's and the contact stage's
+//! buffers are allocated when they are built. A counting global allocator counts the
+//! allocations of each thread (the test harness prints from its own thread meanwhile).
+
+mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::cell::Cell;
 
+use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
-use nalgebra::Vector3;
+use nalgebra::{Point3, Unit, Vector3};
 
 struct Counting;
 
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+thread_local! {
+    /// Allocations made by this thread; const-initialised, so counting allocates nothing.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -45,7 +56,7 @@ fn ticks_allocate_nothing() {
             .take(5)
             .collect();
         sim.tick();
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let before = allocations();
         for k in 0..20 {
             for &i in &held {
                 let push = Vector3::new(0.0, 0.0, -0.0002 * k as f64);
@@ -58,7 +69,7 @@ fn ticks_allocate_nothing() {
                 }
             }
         }
-        let after = ALLOCATIONS.load(Ordering::SeqCst);
+        let after = allocations();
         assert_eq!(
             after - before,
             0,
@@ -66,4 +77,48 @@ fn ticks_allocate_nothing() {
             after - before
         );
     }
+}
+
+#[test]
+fn contact_ticks_allocate_nothing() {
+    // Both instruments press the front of the liver, one with its tip and one with its
+    // shaft, turning as they go (so the stage takes several sub-moves a tick).
+    let mut sim = Scene::default_scene().build().unwrap();
+    let (lo, _) = sim.mesh.bounding_box();
+    let front = common::contact::front_point(&sim);
+    let pose = |k: usize| {
+        let s = k as f64 / 20.0;
+        let tip = InstrumentPose::new(
+            Point3::new(front.x, front.y, front.z + 0.004 - 0.015 * s),
+            Unit::new_normalize(Vector3::new(0.3 * s, 0.0, 1.0)),
+        );
+        let shaft = InstrumentPose::new(
+            Point3::new(lo.x - 0.02, front.y, front.z + 0.004 - 0.015 * s),
+            Unit::new_normalize(Vector3::new(1.0, 0.1 * s, 0.0)),
+        );
+        (tip, shaft)
+    };
+    let (a, b) = pose(0);
+    sim.set_pose(0, Some(a));
+    sim.set_pose(1, Some(b));
+    sim.tick();
+    let before = allocations();
+    for k in 1..=20 {
+        let (a, b) = pose(k);
+        sim.set_pose(0, Some(a));
+        sim.set_pose(1, Some(b));
+        sim.tick();
+    }
+    let after = allocations();
+    let held: Vec<usize> = sim.instruments.iter().map(|i| i.held.len()).collect();
+    assert!(
+        held.iter().all(|&h| h > 0),
+        "both instruments press: held {held:?}"
+    );
+    assert_eq!(
+        after - before,
+        0,
+        "{} allocations in 20 contact ticks",
+        after - before
+    );
 }

@@ -25,7 +25,7 @@ pub fn winding_number(sim: &Simulation, p: &Point3<f64>) -> f64 {
 
 /// Checks, for every instrument in the body: no free surface vertex and no surface edge
 /// with a free end inside it deeper than [`DEPTH_TOLERANCE`], and its axis (sampled
-/// every millimetre, tip included) outside the liver. Supports never move, so a
+/// every 2 mm, tip included) outside the liver. Supports never move, so a
 /// vertex or edge that is all support is not the stage's to keep out.
 pub fn check_invariants(sim: &Simulation) -> Result<(), String> {
     let x = &sim.state.x;
@@ -55,7 +55,7 @@ pub fn check_invariants(sim: &Simulation) -> Result<(), String> {
                 ));
             }
         }
-        let samples = (len / 1e-3).ceil() as usize;
+        let samples = (len / 2e-3).ceil() as usize;
         for k in 0..=samples {
             let p = pose.point_at(len * k as f64 / samples.max(1) as f64);
             let w = winding_number(sim, &p);

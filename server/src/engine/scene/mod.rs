@@ -16,8 +16,8 @@ mod schema;
 pub use build::Simulation;
 pub use error::SceneError;
 pub use schema::{
-    FixedSpec, ForceModelKind, ForceModelSpec, InstrumentSpec, MaterialSpec, MechanicsSpec,
-    MeshSpec, RecordingSpec, RegionSpec, Scene,
+    BoxSpec, FixedSpec, ForceModelKind, ForceModelSpec, InstrumentSpec, MaterialSpec,
+    MechanicsSpec, MeshSpec, RecordingSpec, RegionSpec, Scene,
 };
 
 /// The default scene, embedded in the binary: SOFA's liver scaled to about 0.2 m,

@@ -1,0 +1,183 @@
+//! Property test of the contact stage over random trajectories.
+//!
+//! Meshes: SOFA's liver (coarse and irregular, not convex), liver-5k (finer and
+//! smoother, not convex) and a box (convex). One or two instruments follow random
+//! waypoints near the free face — any axis tilt, slow or fast (a waypoint may be
+//! reached in a single tick); two instruments keep to their own sides, as real ones
+//! cannot pass through each other — and after every tick the invariants hold: no free
+//! surface vertex or edge more than 1e-6 m inside an instrument, and no axis point
+//! inside the liver.
+
+mod common;
+
+use common::contact::{check_invariants, pose};
+use laparo_server::engine::mesh::TetMesh;
+use laparo_server::engine::scene::{BoxSpec, Scene, Simulation};
+use nalgebra::Point3;
+use proptest::prelude::*;
+
+const LIVER_5K: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh");
+
+/// A 10 × 6 × 6 cm box of Kuhn-split cubes, centred on the origin.
+fn box_mesh() -> TetMesh {
+    let n = [10usize, 6, 6];
+    let h = 0.01;
+    let id = |i: usize, j: usize, k: usize| (i + (n[0] + 1) * (j + (n[1] + 1) * k)) as u32;
+    let mut positions = Vec::new();
+    for k in 0..=n[2] {
+        for j in 0..=n[1] {
+            for i in 0..=n[0] {
+                positions.push(Point3::new(
+                    i as f64 * h - 0.05,
+                    j as f64 * h - 0.03,
+                    k as f64 * h - 0.03,
+                ));
+            }
+        }
+    }
+    let mut tets = Vec::new();
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                for perm in [
+                    [0, 1, 2],
+                    [0, 2, 1],
+                    [1, 0, 2],
+                    [1, 2, 0],
+                    [2, 0, 1],
+                    [2, 1, 0],
+                ] {
+                    let mut c = [i, j, k];
+                    let mut t = [id(i, j, k); 4];
+                    for (s, axis) in perm.into_iter().enumerate() {
+                        c[axis] += 1;
+                        t[s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    tets.push(t);
+                }
+            }
+        }
+    }
+    TetMesh::from_tets(positions, tets).expect("the box mesh is valid")
+}
+
+/// The scene for mesh `m` (0 SOFA liver, 1 liver-5k, 2 box) and the centre of its free
+/// face, which the instruments work on.
+fn scene(m: usize, instruments: usize) -> (Simulation, Point3<f64>) {
+    let mut scene = Scene::default_scene();
+    scene.instruments.truncate(instruments);
+    let sim = match m {
+        0 | 1 => {
+            if m == 1 {
+                scene.mesh.file = LIVER_5K.to_string();
+            }
+            scene.build().unwrap()
+        }
+        _ => {
+            scene.fixed.boxes = vec![BoxSpec {
+                min: [-1.0, -1.0, -1.0],
+                max: [1.0, 1.0, -0.029],
+            }];
+            scene.build_on(box_mesh()).unwrap()
+        }
+    };
+    let front = sim
+        .mesh
+        .surface
+        .vertices
+        .iter()
+        .map(|&v| sim.state.x[v as usize])
+        .filter(|p| p.x.abs() < 0.03 && p.y.abs() < 0.02)
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .unwrap();
+    (sim, front)
+}
+
+/// A waypoint: tip offset from the face centre (m), axis tilt, ticks to get there.
+type Waypoint = ([f64; 3], [f64; 2], usize);
+
+fn waypoint() -> impl Strategy<Value = Waypoint> {
+    (
+        [-0.025..0.025f64, -0.012..0.012f64, -0.02..0.025f64],
+        [-1.5..1.5f64, -0.2..0.2f64],
+        1usize..6,
+    )
+}
+
+/// Waypoints of one of two instruments that never meet: tips on their own side of the
+/// face (at least 2.4 cm apart) and shafts leaning away from each other.
+fn side_waypoint(side: f64) -> impl Strategy<Value = Waypoint> {
+    (
+        [0.012..0.03f64, -0.012..0.012f64, -0.02..0.025f64],
+        [0.0..1.5f64, -0.2..0.2f64],
+        1usize..6,
+    )
+        .prop_map(move |(o, t, n)| ([side * o[0], o[1], o[2]], [side * t[0], t[1]], n))
+}
+
+fn run(m: usize, paths: &[Vec<Waypoint>]) -> Result<(), TestCaseError> {
+    let (mut sim, front) = scene(m, paths.len());
+    let poses = |w: &Waypoint| {
+        let (o, t, _) = w;
+        pose(
+            [front.x + o[0], front.y + o[1], front.z + o[2]],
+            [t[0], t[1], 1.0],
+        )
+    };
+    let segments = paths.iter().map(Vec::len).min().unwrap();
+    // Instruments enter from outside, as through a trocar: each starts 3 cm in front of
+    // the face, then follows its waypoints.
+    let mut current: Vec<_> = paths
+        .iter()
+        .map(|p| {
+            let (o, t, n) = p[0];
+            poses(&([o[0], o[1], 0.03], t, n))
+        })
+        .collect();
+    for (i, c) in current.iter().enumerate() {
+        sim.set_pose(i, Some(*c));
+    }
+    sim.tick();
+    check_invariants(&sim).map_err(TestCaseError::fail)?;
+    for s in 1..segments {
+        let ticks = paths[0][s].2;
+        let from = current.clone();
+        for k in 1..=ticks {
+            let f = k as f64 / ticks as f64;
+            for (i, path) in paths.iter().enumerate() {
+                let to = poses(&path[s]);
+                let tip = from[i].tip + (to.tip - from[i].tip) * f;
+                let axis = from[i].axis.into_inner() * (1.0 - f) + to.axis.into_inner() * f;
+                current[i] = pose([tip.x, tip.y, tip.z], [axis.x, axis.y, axis.z]);
+                sim.set_pose(i, Some(current[i]));
+            }
+            sim.tick();
+            check_invariants(&sim).map_err(TestCaseError::fail)?;
+        }
+    }
+    prop_assert!(
+        sim.state
+            .x
+            .iter()
+            .all(|p| p.coords.iter().all(|c| c.is_finite()))
+    );
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn one_instrument_keeps_the_invariants(m in 0usize..3, path in prop::collection::vec(waypoint(), 4..10)) {
+        run(m, &[path])?;
+    }
+
+    #[test]
+    fn two_instruments_keep_the_invariants(
+        m in 0usize..3,
+        a in prop::collection::vec(side_waypoint(-1.0), 4..8),
+        b in prop::collection::vec(side_waypoint(1.0), 4..8),
+    ) {
+        run(m, &[a, b])?;
+    }
+}
