@@ -181,3 +181,41 @@ proptest! {
         run(m, &[a, b])?;
     }
 }
+
+/// Found by the property test: the right instrument's push swung the triangle the left
+/// tip had pressed back across the left axis (SOFA's liver, whose triangles are larger
+/// than the instrument). The final pass for several instruments now presses tips too.
+#[test]
+fn a_push_by_one_instrument_does_not_uncover_the_other_tip() {
+    let a: Vec<Waypoint> = vec![
+        ([-0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        ([-0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        ([-0.012, 0.0, 0.0], [0.0, 0.0], 4),
+        ([-0.012, -0.0008913906689083325, 0.0], [0.0, 0.0], 2),
+        ([-0.012, 0.0, -0.018698094801554866], [0.0, 0.0], 1),
+    ];
+    let b: Vec<Waypoint> = vec![
+        ([0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        ([0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        (
+            [0.012, 0.0, 0.023812817276036315],
+            [0.5728287960117414, 0.10145114983712396],
+            1,
+        ),
+        (
+            [
+                0.017881489569819345,
+                0.010256864510055442,
+                -0.019364635533410154,
+            ],
+            [0.32221963163026296, -0.0700657848503315],
+            1,
+        ),
+        (
+            [0.012, 0.0, 0.0],
+            [0.6153818626945722, -0.19470755250819438],
+            1,
+        ),
+    ];
+    run(0, &[a, b]).unwrap();
+}

@@ -300,7 +300,10 @@ impl ContactStage {
             self.hold_and_release(k, ins, state, imposed);
             self.collect_shaft_edges(ins, surface, state);
         }
-        // One more push-out for every instrument, so that none is left inside another.
+        // One more pass for every instrument, tip and push-out, so that what one
+        // instrument moved is not left inside another or across its axis (a large
+        // triangle swung back over a pressed tip has no vertex inside the instrument;
+        // only the tip press sees it).
         if instruments.len() > 1 {
             for (k, ins) in instruments.iter_mut().enumerate() {
                 let Some(pose) = ins.current else { continue };
@@ -308,15 +311,26 @@ impl ContactStage {
                 self.s.moved.clear();
                 let length = ins.active_length();
                 self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
-                if push_out(
+                if ins.tip_contact {
+                    let reach = if ins.shaft_contact {
+                        ins.length
+                    } else {
+                        2.0 * ins.radius
+                    };
+                    let tip =
+                        press_tip(&mut self.s, surface, &pose, ins.radius, reach, &mut state.x);
+                    ins.report.tip = ins.report.tip.or(tip);
+                }
+                push_out(
                     &mut self.s,
                     surface,
                     &pose,
                     ins.radius,
                     length,
                     &mut state.x,
-                ) {
-                    self.hold_and_release(k, ins, state, imposed);
+                );
+                if !self.s.moved.is_empty() {
+                    self.hold(k, ins, state, imposed);
                 }
             }
         }
@@ -405,10 +419,16 @@ impl ContactStage {
             }
             keep
         });
-        for &v in &s.moved {
+        self.hold(k, ins, state, imposed);
+    }
+
+    /// Holds the vertices moved for instrument `k`, where they are now.
+    fn hold(&mut self, k: usize, ins: &mut Instrument, state: &State, imposed: &mut Imposed) {
+        let bit = 1u8 << k;
+        for &v in &self.s.moved {
             let vi = v as usize;
-            if holders[vi] & bit == 0 {
-                holders[vi] |= bit;
+            if self.holders[vi] & bit == 0 {
+                self.holders[vi] |= bit;
                 ins.held.push(v);
             }
             imposed.set(v, state.x[vi]);
