@@ -110,7 +110,9 @@ impl BroadPhase {
             let b = swept_box(surface, t, previous, current).to_parry();
             self.bvh.insert_or_update_partially(b, t as u32, 0.0);
         }
-        self.bvh.refit(&mut self.workspace);
+        // The tree's shape is kept and only its boxes refitted: cheaper than `refit`,
+        // which also reorders the nodes in memory.
+        self.bvh.refit_without_opt();
     }
 
     /// Appends to `out` the triangles whose swept box meets `query`.

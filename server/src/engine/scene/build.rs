@@ -1,6 +1,7 @@
 //! Building a simulation from a scene: only what the scene declares.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use nalgebra::{Point3, Vector3};
 
@@ -35,10 +36,21 @@ pub struct Simulation {
     pub instruments: Vec<Instrument>,
     /// The contact stage; built only for a scene with instruments.
     pub contact: Option<ContactStage>,
+    /// How long the last tick's stages took.
+    pub last_timing: TickTiming,
     /// Ticks done.
     pub tick: u64,
     /// Simulated time, s.
     pub time: f64,
+}
+
+/// Wall time of one tick's stages, s: what benchmarks and the session report.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TickTiming {
+    /// The elastic step (the integrator).
+    pub elastic: f64,
+    /// The contact stage, before and after the elastic step.
+    pub contact: f64,
 }
 
 impl Simulation {
@@ -50,9 +62,11 @@ impl Simulation {
     /// Advances one mechanics tick: held vertices follow their instruments, the elastic
     /// step moves the liver, the contact stage keeps it out of the instruments.
     pub fn tick(&mut self) -> StepReport {
+        let t0 = Instant::now();
         if let Some(contact) = &mut self.contact {
             contact.before_step(&mut self.instruments, &self.state, &mut self.imposed);
         }
+        let t1 = Instant::now();
         let report = self.integrator.step(
             &self.model,
             &mut self.state,
@@ -60,6 +74,7 @@ impl Simulation {
             self.gravity,
             self.dt,
         );
+        let t2 = Instant::now();
         if let Some(contact) = &mut self.contact {
             contact.after_step(
                 &mut self.instruments,
@@ -70,6 +85,11 @@ impl Simulation {
                 self.dt,
             );
         }
+        let t3 = Instant::now();
+        self.last_timing = TickTiming {
+            elastic: (t2 - t1).as_secs_f64(),
+            contact: ((t1 - t0) + (t3 - t2)).as_secs_f64(),
+        };
         self.tick += 1;
         self.time += self.dt;
         report
@@ -153,6 +173,7 @@ impl Scene {
             fixed,
             instruments,
             contact,
+            last_timing: TickTiming::default(),
             tick: 0,
             time: 0.0,
         })

@@ -13,7 +13,7 @@ mod build;
 mod error;
 mod schema;
 
-pub use build::Simulation;
+pub use build::{Simulation, TickTiming};
 pub use error::SceneError;
 pub use schema::{
     BoxSpec, FixedSpec, ForceModelKind, ForceModelSpec, InstrumentSpec, MaterialSpec,
