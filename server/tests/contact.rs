@@ -36,7 +36,12 @@ fn tip_press_deforms_holds_and_releases() {
         );
         sim.tick();
         check_invariants(&sim).unwrap();
-        forces.push(sim.instruments[0].report.reaction);
+        let ins = &sim.instruments[0];
+        // The report carries each held vertex's reaction, and they add up to the force.
+        assert_eq!(ins.report.held_reactions.len(), ins.held.len());
+        let sum: nalgebra::Vector3<f64> = ins.report.held_reactions.iter().sum();
+        assert!((sum - ins.report.reaction).norm() <= 1e-12 * (1.0 + sum.norm()));
+        forces.push(ins.report.reaction);
     }
     let pressed = &forces[45..60];
     // The tissue pushes the instrument back toward its handle (+z).

@@ -50,6 +50,9 @@ pub struct ContactReport {
     /// The tissue's force on the instrument, N: the sum of the elastic reactions
     /// `−(K u)_i` on the vertices it holds.
     pub reaction: Vector3<f64>,
+    /// The elastic reaction on each held vertex, N, in the order of
+    /// [`Instrument::held`].
+    pub held_reactions: Vec<Vector3<f64>>,
 }
 
 /// The tip contact of §2.5.
@@ -97,6 +100,7 @@ impl ContactReport {
         self.tip = None;
         self.nearest = None;
         self.shaft_edges.clear();
+        self.held_reactions.clear();
         self.reaction = Vector3::zeros();
     }
 }

@@ -11,18 +11,28 @@
 //! tip onto a plane at distance `r` from the tip; push the remaining edges and vertices
 //! out of the cylinder.
 //!
-//! This module holds the pure geometry of those steps — plain data in, plain data out,
-//! no allocation, so every function can run every tick:
+//! Files, by concern:
 //!
-//! - [`pose`]: the instrument's pose and the rigid motion between two poses (eq. 1).
-//! - [`crossing`]: whether a moving edge crossed the axis segment, when and where
-//!   (eq. 2–5, derived again with the printed typos corrected and every degenerate case
-//!   decided), and whether a vertex's motion drives its edge toward the axis (eq. 6,
-//!   corrected).
-//! - [`closest`]: closest points between an edge and the axis segment and from a point
-//!   to it (pushing out, §2.6), ray–triangle intersection with barycentric coordinates
-//!   and the closest point of a triangle (locating `P_prox`, §2.5), and the interpolated
-//!   normal `n_prox` (eq. 7).
+//! - [`stage`]: the stage around the elastic step — held vertices follow their
+//!   instrument, then per instrument the steps below in sub-moves of at most 2° of
+//!   turn, then hold and release; the tick's report for the force model.
+//! - [`broadphase`]: parry's BVH over the surface triangles' motion in the instrument's
+//!   frame; every triangle that may have met the instrument, at any speed.
+//! - `edges`: colliding edges and confidence intervals (§2.3–2.4).
+//! - `tip`: the triangle under the tip onto the plane at distance `r` (§2.5).
+//! - `push`: edges and vertices out of the instrument (§2.6).
+//! - [`instrument`]: an instrument's geometry, poses, held vertices and report.
+//! - Pure geometry, plain data in and out, no allocation:
+//!   [`pose`] (the rigid motion of eq. 1), [`crossing`] (eq. 2–6 derived again, the
+//!   printed typos corrected and every degenerate case decided), [`closest`] (closest
+//!   points for the push-out, ray–triangle and eq. 7's `n_prox`).
+//!
+//! Supports (fixed vertices) never move: an edge or a vertex that is all support is
+//! not kept out of an instrument, and a scene should keep its instruments away from
+//! its supports. An instrument that first appears already inside the tissue (no
+//! previous pose, so no motion to analyse) is pushed out as well as the tip press and
+//! the push-out can; instruments are expected to enter from outside, as through a
+//! trocar.
 
 pub mod broadphase;
 pub mod closest;

@@ -438,11 +438,13 @@ impl ContactStage {
     /// The tissue's force on the instrument: the elastic reactions on what it holds.
     fn report_reaction(&self, ins: &mut Instrument, model: &ElasticModel, state: &State) {
         let mut total = Vector3::zeros();
+        ins.report.held_reactions.clear();
         for &v in &ins.held {
             let mut ku = Vector3::zeros();
             model.stiffness.for_each_in_row(v as usize, |j, kij| {
                 ku += kij * (state.x[j] - model.rest[j])
             });
+            ins.report.held_reactions.push(-ku);
             total -= ku;
         }
         ins.report.reaction = total;
