@@ -12,6 +12,7 @@ mod common;
 
 use common::contact::{check_invariants, pose};
 use laparo_server::engine::mesh::TetMesh;
+use laparo_server::engine::mesh::generate::kuhn_box;
 use laparo_server::engine::scene::{BoxSpec, Scene, Simulation};
 use nalgebra::Point3;
 use proptest::prelude::*;
@@ -20,44 +21,7 @@ const LIVER_5K: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh
 
 /// A 10 × 6 × 6 cm box of Kuhn-split cubes, centred on the origin.
 fn box_mesh() -> TetMesh {
-    let n = [10usize, 6, 6];
-    let h = 0.01;
-    let id = |i: usize, j: usize, k: usize| (i + (n[0] + 1) * (j + (n[1] + 1) * k)) as u32;
-    let mut positions = Vec::new();
-    for k in 0..=n[2] {
-        for j in 0..=n[1] {
-            for i in 0..=n[0] {
-                positions.push(Point3::new(
-                    i as f64 * h - 0.05,
-                    j as f64 * h - 0.03,
-                    k as f64 * h - 0.03,
-                ));
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                for perm in [
-                    [0, 1, 2],
-                    [0, 2, 1],
-                    [1, 0, 2],
-                    [1, 2, 0],
-                    [2, 0, 1],
-                    [2, 1, 0],
-                ] {
-                    let mut c = [i, j, k];
-                    let mut t = [id(i, j, k); 4];
-                    for (s, axis) in perm.into_iter().enumerate() {
-                        c[axis] += 1;
-                        t[s + 1] = id(c[0], c[1], c[2]);
-                    }
-                    tets.push(t);
-                }
-            }
-        }
-    }
+    let (positions, tets) = kuhn_box([10, 6, 6], [0.1, 0.06, 0.06], [-0.05, -0.03, -0.03]);
     TetMesh::from_tets(positions, tets).expect("the box mesh is valid")
 }
 
@@ -216,6 +180,49 @@ fn a_push_by_one_instrument_does_not_uncover_the_other_tip() {
             [0.6153818626945722, -0.19470755250819438],
             1,
         ),
+    ];
+    run(0, &[a, b]).unwrap();
+}
+
+/// Found by the property test: after the last pass, the right instrument's push had
+/// left an edge 2 µm inside the left one. The last pass now repeats until it settles.
+#[test]
+fn the_last_pass_settles_between_two_instruments() {
+    let a: Vec<Waypoint> = vec![
+        ([-0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        (
+            [
+                -0.028050077347093534,
+                0.005421956847533173,
+                0.020195039508693693,
+            ],
+            [0.0, 0.0],
+            4,
+        ),
+        (
+            [-0.012, -0.0032179142398339414, -0.015119088407726028],
+            [-0.8706972457942379, 0.0],
+            4,
+        ),
+        ([-0.012, 0.0, 0.0], [0.0, 0.0], 2),
+    ];
+    let b: Vec<Waypoint> = vec![
+        ([0.012, 0.0, 0.0], [0.0, 0.0], 1),
+        (
+            [0.012, -0.007202561551447254, 0.0],
+            [0.9565247842959089, 0.0],
+            1,
+        ),
+        (
+            [
+                0.023344227596331344,
+                0.008682014473874984,
+                -0.0069631292682066585,
+            ],
+            [0.0, 0.0],
+            1,
+        ),
+        ([0.012, 0.007696771784938957, 0.0], [0.0, 0.0], 1),
     ];
     run(0, &[a, b]).unwrap();
 }

@@ -81,6 +81,7 @@ impl Instrument {
             held: Vec::with_capacity(vertices),
             report: ContactReport {
                 shaft_edges: Vec::with_capacity(vertices),
+                held_reactions: Vec::with_capacity(vertices),
                 ..ContactReport::default()
             },
         }

@@ -109,6 +109,10 @@ pub struct ContactStage {
     s: Scratch,
 }
 
+/// Rounds of the last pass over several instruments: it repeats until a round moves
+/// nothing, since the last instrument's push can put a vertex back into the first.
+const FINAL_ROUNDS: usize = 4;
+
 /// Instruments a stage handles: one bit each in `holders`.
 pub const MAX_INSTRUMENTS: usize = 8;
 
@@ -267,17 +271,7 @@ impl ContactStage {
                         &mut state.x,
                     );
                 }
-                if ins.tip_contact {
-                    // Without a shaft the tip can only have gone through the surface
-                    // along its own path.
-                    let reach = if ins.shaft_contact {
-                        ins.length
-                    } else {
-                        (to.tip - from.tip).norm() + 2.0 * ins.radius
-                    };
-                    let tip = press_tip(&mut self.s, surface, &to, ins.radius, reach, &mut state.x);
-                    ins.report.tip = tip.or(ins.report.tip);
-                }
+                self.press(ins, surface, &from, &to, &mut state.x);
                 if i < moves {
                     push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
                     for &v in &surface.vertices {
@@ -305,32 +299,30 @@ impl ContactStage {
         // triangle swung back over a pressed tip has no vertex inside the instrument;
         // only the tip press sees it).
         if instruments.len() > 1 {
-            for (k, ins) in instruments.iter_mut().enumerate() {
-                let Some(pose) = ins.current else { continue };
-                self.s.mark = self.s.mark.wrapping_add(1);
-                self.s.moved.clear();
-                let length = ins.active_length();
-                self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
-                if ins.tip_contact {
-                    let reach = if ins.shaft_contact {
-                        ins.length
-                    } else {
-                        2.0 * ins.radius
-                    };
-                    let tip =
-                        press_tip(&mut self.s, surface, &pose, ins.radius, reach, &mut state.x);
-                    ins.report.tip = ins.report.tip.or(tip);
+            for _ in 0..FINAL_ROUNDS {
+                let mut moved = false;
+                for (k, ins) in instruments.iter_mut().enumerate() {
+                    let Some(pose) = ins.current else { continue };
+                    self.s.mark = self.s.mark.wrapping_add(1);
+                    self.s.moved.clear();
+                    let length = ins.active_length();
+                    self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
+                    self.press(ins, surface, &pose, &pose, &mut state.x);
+                    push_out(
+                        &mut self.s,
+                        surface,
+                        &pose,
+                        ins.radius,
+                        length,
+                        &mut state.x,
+                    );
+                    if !self.s.moved.is_empty() {
+                        moved = true;
+                        self.hold(k, ins, state, imposed);
+                    }
                 }
-                push_out(
-                    &mut self.s,
-                    surface,
-                    &pose,
-                    ins.radius,
-                    length,
-                    &mut state.x,
-                );
-                if !self.s.moved.is_empty() {
-                    self.hold(k, ins, state, imposed);
+                if !moved {
+                    break;
                 }
             }
         }
@@ -388,6 +380,29 @@ impl ContactStage {
                 }
             }
         }
+    }
+
+    /// The tip press (§2.5) for an instrument that moved from `from` to `to`; the
+    /// report keeps the latest contact. Without a shaft the tip can only have gone
+    /// through the surface along its own path, so it reaches that far (and 2r) only.
+    fn press(
+        &mut self,
+        ins: &mut Instrument,
+        surface: &Surface,
+        from: &InstrumentPose,
+        to: &InstrumentPose,
+        x: &mut [Point3<f64>],
+    ) {
+        if !ins.tip_contact {
+            return;
+        }
+        let reach = if ins.shaft_contact {
+            ins.length
+        } else {
+            (to.tip - from.tip).norm() + 2.0 * ins.radius
+        };
+        let tip = press_tip(&mut self.s, surface, to, ins.radius, reach, x);
+        ins.report.tip = tip.or(ins.report.tip);
     }
 
     /// Holds the vertices moved for instrument `k`; releases its other held vertices
