@@ -31,9 +31,15 @@
 
 mod common;
 
+/// The contact tests' gestures and checks; the bench uses `front_point`.
+#[path = "../tests/common/contact.rs"]
+#[allow(dead_code)]
+mod gestures;
+
 use std::time::Instant;
 
 use common::*;
+use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::StepReport;
 use laparo_server::engine::scene::{Scene, Simulation};
@@ -70,19 +76,6 @@ fn timed_tick(sim: &mut Simulation) -> TickTimes {
         whole,
         step,
     }
-}
-
-/// The surface vertex of the liver's free front (+z) face nearest the middle.
-fn front_point(sim: &Simulation) -> Point3<f64> {
-    let x = &sim.state.x;
-    sim.mesh
-        .surface
-        .vertices
-        .iter()
-        .map(|&v| x[v as usize])
-        .filter(|p| p.x.abs() < 0.03 && p.y.abs() < 0.02)
-        .max_by(|a, b| a.z.total_cmp(&b.z))
-        .expect("the default liver has a front face")
 }
 
 /// One instrument's press: its axis line moves along −z from `z` until the stage first

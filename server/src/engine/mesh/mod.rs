@@ -22,6 +22,7 @@
 
 mod assemble;
 mod error;
+pub mod generate;
 mod gmsh;
 mod surface;
 mod topology;
