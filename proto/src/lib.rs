@@ -10,10 +10,15 @@
 //!   (`Scenes`, `Sessions`, `Station`, `Observe`, `Recordings`).
 //! - [`FILE_DESCRIPTOR_SET`]: the encoded descriptors of those files (with their
 //!   imports and comments), for gRPC reflection and MCAP schemas.
+//! - [`force`]: the force of a local model (eq. 8), the combination of the tip and
+//!   shaft forces (eq. 9, derived again) and the axial/torque split — pure functions
+//!   that server and clients must compute alike.
 //!
 //! Units on the wire are SI (m, kg, s, N, Pa, N·m); positions and directions are
 //! in the world frame of the scene, in metres. The `.proto` files are the
 //! reference: every field there states its unit and frame.
+
+pub mod force;
 
 /// The package `laparo.v1`: messages, enums, and the tonic `*_client` and
 /// `*_server` modules of each service.

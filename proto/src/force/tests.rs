@@ -1,0 +1,123 @@
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use proptest::prelude::*;
+
+use super::*;
+
+fn vec3() -> impl Strategy<Value = Vector3<f64>> {
+    [-10.0..10.0f64, -10.0..10.0f64, -10.0..10.0f64].prop_map(Vector3::from)
+}
+
+fn close(a: &Vector3<f64>, b: &Vector3<f64>, tol: f64) -> bool {
+    (a - b).norm() <= tol * (1.0 + a.norm().max(b.norm()))
+}
+
+proptest! {
+    #[test]
+    fn a_zero_force_leaves_the_other(f in vec3()) {
+        prop_assert_eq!(combine(&f, &Vector3::zeros()), f);
+        prop_assert_eq!(combine(&Vector3::zeros(), &f), f);
+    }
+
+    #[test]
+    fn same_direction_gives_the_larger(f in vec3(), k in 0.01..100.0f64) {
+        let g = f * k;
+        let larger = if k >= 1.0 { g } else { f };
+        prop_assert!(close(&combine(&f, &g), &larger, 1e-12));
+        prop_assert!(close(&combine(&g, &f), &larger, 1e-12));
+    }
+
+    #[test]
+    fn orthogonal_or_opposed_gives_the_sum(f in vec3(), g in vec3(), k in 0.01..100.0f64) {
+        prop_assume!(f.norm() > 1e-6 && g.norm() > 1e-6);
+        let orthogonal = g - f * (g.dot(&f) / f.norm_squared());
+        prop_assert!(close(&combine(&f, &orthogonal), &(f + orthogonal), 1e-12));
+        prop_assert!(close(&combine(&f, &(-f * k)), &(f - f * k), 1e-12));
+    }
+
+    #[test]
+    fn continuous_across_every_case_boundary(f in vec3(), g in vec3(), eps in 1e-9..1e-6f64) {
+        // Move f1 across p = 0, p = |f0|² and p = |f1|² along f0: the result moves by
+        // no more than a small multiple of the step.
+        prop_assume!(f.norm() > 0.1 && g.norm() > 0.1);
+        let u = f.normalize();
+        let perp = g - u * g.dot(&u);
+        prop_assume!(perp.norm() > 0.1);
+        // f1 = perp + s·u has p = s|f0|; the boundaries are s = 0, s = |f0| and the s
+        // solving s|f0| = |perp|² + s² (when it exists).
+        let mut boundaries = vec![0.0, f.norm()];
+        let (a, c) = (f.norm(), perp.norm_squared());
+        let disc = a * a - 4.0 * c;
+        if disc >= 0.0 {
+            boundaries.push((a - disc.sqrt()) / 2.0);
+            boundaries.push((a + disc.sqrt()) / 2.0);
+        }
+        let scale = f.norm() + g.norm();
+        for s in boundaries {
+            let step = eps * scale;
+            let below = combine(&f, &(perp + u * (s - step)));
+            let above = combine(&f, &(perp + u * (s + step)));
+            prop_assert!((below - above).norm() <= 1e3 * step + 1e-12 * scale,
+                "jump {} at s = {s} for a step {step}", (below - above).norm());
+        }
+    }
+
+    #[test]
+    fn nearly_equal_forces_combine_accurately(f in vec3(), angle in 1e-12..1e-6f64) {
+        // Two forces equal but for a tiny turn are in the blend region, where a naive
+        // denominator |f0|²|f1|² − p² is all rounding; the result must be ≈ f.
+        prop_assume!(f.norm() > 1e-3);
+        let axis = Unit::new_normalize(f.cross(&Vector3::new(0.3, -0.2, 1.0)));
+        let g = Rotation3::from_axis_angle(&axis, angle) * f;
+        let r = combine(&f, &g);
+        prop_assert!(r.iter().all(|c| c.is_finite()));
+        prop_assert!(close(&r, &f, 1e-6), "{r} vs {f}");
+    }
+}
+
+#[test]
+fn the_printed_case_b_contradicts_the_prose() {
+    // f0 small, f1 large and the same way: the prose wants the larger, f1. The printed
+    // eq. 9 (b) — |F0|² ≤ F0·F1 ⇒ F0 — would give the smaller.
+    let f0 = Vector3::new(1.0, 0.0, 0.0);
+    let f1 = Vector3::new(3.0, 0.5, 0.0);
+    assert!(f0.norm_squared() <= f0.dot(&f1));
+    assert_eq!(combine(&f0, &f1), f1);
+}
+
+#[test]
+fn plane_force_grows_with_depth_and_stiffness_and_points_out() {
+    let plane = Plane {
+        normal: Unit::new_normalize(Vector3::new(0.0, 0.0, 1.0)),
+        anchor: Point3::origin(),
+        stiffness: 200.0,
+    };
+    assert_eq!(
+        plane_force(&plane, &Point3::new(0.1, 0.0, 0.01)),
+        Vector3::zeros()
+    );
+    let f1 = plane_force(&plane, &Point3::new(0.1, 0.0, -0.01));
+    let f2 = plane_force(&plane, &Point3::new(0.1, 0.0, -0.02));
+    assert!((f1 - Vector3::new(0.0, 0.0, 2.0)).norm() < 1e-12);
+    assert!((f2 - f1 * 2.0).norm() < 1e-12);
+    let stiffer = Plane {
+        stiffness: 400.0,
+        ..plane
+    };
+    assert!((plane_force(&stiffer, &Point3::new(0.0, 0.0, -0.01)) - f1 * 2.0).norm() < 1e-12);
+}
+
+#[test]
+fn split_gives_the_axial_part_and_the_torque_about_the_trocar() {
+    let axis = Unit::new_normalize(Vector3::new(0.0, 0.0, 1.0));
+    let trocar = Point3::new(0.0, 0.0, 0.2);
+    let tip = Point3::new(0.0, 0.0, 0.0);
+    // A push along the shaft has no torque about a trocar on the axis.
+    let along = split(&Vector3::new(0.0, 0.0, 3.0), &tip, &axis, &trocar);
+    assert_eq!(along.axial, 3.0);
+    assert_eq!(along.torque, Vector3::zeros());
+    // A sideways push (+x) at the tip, 0.2 m below the trocar on the axis:
+    // (P − T) × F = (0, 0, −0.2) × (1, 0, 0) = (0, −0.2, 0) N·m.
+    let side = split(&Vector3::new(1.0, 0.0, 0.0), &tip, &axis, &trocar);
+    assert_eq!(side.axial, 0.0);
+    assert!((side.torque - Vector3::new(0.0, -0.2, 0.0)).norm() < 1e-15);
+}
