@@ -191,14 +191,7 @@ impl Track {
             return Some(self.keys.last()?.1);
         }
         let ((t0, p0), (t1, p1)) = (self.keys[k - 1], self.keys[k]);
-        let s = (t - t0) / (t1 - t0);
-        let tip = p0.tip + (p1.tip - p0.tip) * s;
-        // Half-turns have no unique great circle: keep the nearer keyframe's axis.
-        let axis =
-            p0.axis
-                .try_slerp(&p1.axis, s, 1e-9)
-                .unwrap_or(if s < 0.5 { p0.axis } else { p1.axis });
-        Some(InstrumentPose::new(tip, axis))
+        Some(p0.lerp(&p1, (t - t0) / (t1 - t0)))
     }
 }
 

@@ -41,6 +41,24 @@ impl InstrumentPose {
         Self { tip, axis }
     }
 
+    /// The pose a fraction `f` of the way to `to`: the tip on the straight line, the
+    /// axis turning at constant angular speed on the great circle; exactly `self` at
+    /// `f ≤ 0` and `to` at `f ≥ 1`. A half-turn has no unique great circle, so it keeps
+    /// the nearer end's axis (antiparallel below a sine of 1e-9).
+    pub fn lerp(&self, to: &InstrumentPose, f: f64) -> InstrumentPose {
+        if f <= 0.0 {
+            return *self;
+        }
+        if f >= 1.0 {
+            return *to;
+        }
+        let axis = self
+            .axis
+            .try_slerp(&to.axis, f, 1e-9)
+            .unwrap_or(if f < 0.5 { self.axis } else { to.axis });
+        InstrumentPose::new(self.tip + (to.tip - self.tip) * f, axis)
+    }
+
     /// The point of the axis at distance `s` from the tip toward the handle, `P + s·Z`.
     pub fn point_at(&self, s: f64) -> Point3<f64> {
         self.tip + self.axis.into_inner() * s

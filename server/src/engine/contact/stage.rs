@@ -98,7 +98,7 @@ pub struct ContactStage {
     broadphase: Vec<BroadPhase>,
     /// The three surface edges of each surface triangle.
     triangle_edges: Vec<[u32; 3]>,
-    /// Positions at the start of the tick.
+    /// Surface positions at the start of the tick.
     start: Vec<Point3<f64>>,
     /// Where the elastic step put the surface vertices (the end of their free motion).
     end: Vec<Point3<f64>>,
@@ -182,20 +182,19 @@ impl ContactStage {
         self.s.stats
     }
 
-    /// Whether vertex `v` is held by any instrument.
-    pub fn is_held(&self, v: u32) -> bool {
-        self.holders[v as usize] != 0
-    }
-
     /// Before the elastic step: held vertices follow their instrument's rigid motion,
     /// and instruments that left the body let go of everything.
     pub fn before_step(
         &mut self,
         instruments: &mut [Instrument],
+        surface: &Surface,
         state: &State,
         imposed: &mut Imposed,
     ) {
-        self.start.copy_from_slice(&state.x);
+        // Only the surface is read from the tick's start positions.
+        for &v in &surface.vertices {
+            self.start[v as usize] = state.x[v as usize];
+        }
         for (k, ins) in instruments.iter_mut().enumerate() {
             match (ins.previous, ins.current) {
                 (Some(prev), Some(cur)) => {
@@ -244,8 +243,8 @@ impl ContactStage {
             let bit = 1u8 << k;
             let moves = sub_moves(&prev, &pose);
             for i in 1..=moves {
-                let from = interpolate(&prev, &pose, (i - 1) as f64 / moves as f64);
-                let to = interpolate(&prev, &pose, i as f64 / moves as f64);
+                let from = prev.lerp(&pose, (i - 1) as f64 / moves as f64);
+                let to = prev.lerp(&pose, i as f64 / moves as f64);
                 let r = rigid_motion(&from, &to);
                 let f = i as f64 / moves as f64;
                 for &v in &surface.vertices {
@@ -272,21 +271,13 @@ impl ContactStage {
                     );
                 }
                 self.press(ins, surface, &from, &to, &mut state.x);
+                push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
                 if i < moves {
-                    push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
                     for &v in &surface.vertices {
                         self.current[v as usize] = state.x[v as usize];
                     }
                 }
             }
-            push_out(
-                &mut self.s,
-                surface,
-                &pose,
-                ins.radius,
-                length,
-                &mut state.x,
-            );
             if ins.report.tip.is_none() {
                 ins.report.nearest = nearest_point(&self.s, surface, &pose, &state.x);
             }
@@ -329,10 +320,9 @@ impl ContactStage {
         for ins in instruments.iter_mut() {
             self.report_reaction(ins, model, state);
             ins.previous = ins.current;
-        }
-        // Vertices the stage moved keep the velocity of their motion over the tick.
-        for v in 0..state.x.len() {
-            if self.holders[v] != 0 {
+            // What the stage holds keeps the velocity of its motion over the tick.
+            for &v in &ins.held {
+                let v = v as usize;
                 state.v[v] = (state.x[v] - self.start[v]) / dt;
             }
         }
@@ -501,14 +491,4 @@ const MAX_TURN: f64 = 2.0 * std::f64::consts::PI / 180.0;
 fn sub_moves(a: &InstrumentPose, b: &InstrumentPose) -> usize {
     let angle = a.axis.angle(&b.axis);
     (angle / MAX_TURN).ceil().max(1.0) as usize
-}
-
-/// The pose a fraction `f` of the way from `a` to `b`: the tip on the straight line, the
-/// axis on the great circle (a half-turn keeps the nearer end's axis).
-fn interpolate(a: &InstrumentPose, b: &InstrumentPose, f: f64) -> InstrumentPose {
-    let axis = a
-        .axis
-        .try_slerp(&b.axis, f, 1e-12)
-        .unwrap_or(if f < 0.5 { a.axis } else { b.axis });
-    InstrumentPose::new(a.tip + (b.tip - a.tip) * f, axis)
 }

@@ -64,7 +64,12 @@ impl Simulation {
     pub fn tick(&mut self) -> StepReport {
         let t0 = Instant::now();
         if let Some(contact) = &mut self.contact {
-            contact.before_step(&mut self.instruments, &self.state, &mut self.imposed);
+            contact.before_step(
+                &mut self.instruments,
+                &self.mesh.surface,
+                &self.state,
+                &mut self.imposed,
+            );
         }
         let t1 = Instant::now();
         let report = self.integrator.step(
@@ -99,6 +104,11 @@ impl Simulation {
     pub fn solve_static(&mut self) -> StepReport {
         self.integrator
             .solve_static(&self.model, &mut self.state, &self.imposed, self.gravity)
+    }
+
+    /// Whether the fixed vertices remove every rigid motion, as a static solve needs.
+    pub fn supports_hold_rigid_motion(&self) -> bool {
+        removes_rigid_motion(&self.mesh.positions, &self.fixed)
     }
 
     /// Largest displacement magnitude, m.
