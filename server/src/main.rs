@@ -119,9 +119,9 @@ fn run(args: RunArgs) -> Result<(), String> {
         );
     }
     if args.static_solve {
-        if sim.fixed.len() < 3 {
+        if !sim.supports_hold_rigid_motion() {
             return Err(format!(
-                "scene {}: a static solve needs fixed vertices (`fixed` in the scene)",
+                "scene {}: a static solve needs three fixed vertices not on one line (`fixed` in the scene)",
                 sim.scene.name
             ));
         }
