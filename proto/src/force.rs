@@ -3,9 +3,12 @@
 //!
 //! A local model is two planes — the tip plane and the shaft plane — each with a unit
 //! normal `n` pointing out of the tissue, an anchor `A` and an apparent stiffness `λ`.
-//! Each gives a force on the instrument from the penetration of its tip `P` into the
-//! plane's half-space (eq. 8); the two combine smoothly (eq. 9); and a laparoscopic
+//! Each gives a force on the instrument from the penetration of the instrument into
+//! the plane's half-space (eq. 8); the two combine smoothly (eq. 9); and a laparoscopic
 //! device takes the result as an axial force and torques about the trocar.
+//! [`LocalModel`] bundles the two planes with the tick and pose they were made for and
+//! evaluates them at any device pose; [`wire`] converts it to and from the contract's
+//! message, checking what arrives.
 
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -88,36 +91,30 @@ pub struct DeviceForce {
     /// Its component along the axis `Z`, N: positive toward the handle (the tissue
     /// pushing the instrument out).
     pub axial: f64,
-    /// Torque about the trocar point, N·m: `(P − T) × F`, the force applied at the tip.
+    /// Torque about the trocar point, N·m: `(C − T) × F`, with `C` the point where
+    /// the force applies (see [`LocalModel::force`]).
     pub torque: Vector3<f64>,
 }
 
-/// Splits `force`, applied at the tip `tip` of an instrument of axis `axis` entering
-/// through `trocar`, into its axial part and its torque about the trocar.
+/// Splits `force`, applied at `point` on an instrument of axis `axis` entering through
+/// `trocar`, into its axial part and its torque about the trocar.
 pub fn split(
     force: &Vector3<f64>,
-    tip: &Point3<f64>,
+    point: &Point3<f64>,
     axis: &Unit<Vector3<f64>>,
     trocar: &Point3<f64>,
 ) -> DeviceForce {
     DeviceForce {
         force: *force,
         axial: force.dot(axis),
-        torque: (tip - trocar).cross(force),
+        torque: (point - trocar).cross(force),
     }
 }
 
-/// The force of a local model on a tip at `tip`: eq. 8 for each active plane, then
-/// eq. 9 (tip plane first).
-pub fn local_model_force(
-    tip_plane: Option<&Plane>,
-    shaft_plane: Option<&Plane>,
-    tip: &Point3<f64>,
-) -> Vector3<f64> {
-    let f0 = tip_plane.map_or_else(Vector3::zeros, |p| plane_force(p, tip));
-    let f1 = shaft_plane.map_or_else(Vector3::zeros, |p| plane_force(p, tip));
-    combine(&f0, &f1)
-}
+mod model;
+pub mod wire;
+
+pub use model::{AppliedForce, ForceModel, LocalModel};
 
 #[cfg(test)]
 mod tests;

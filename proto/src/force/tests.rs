@@ -121,3 +121,143 @@ fn split_gives_the_axial_part_and_the_torque_about_the_trocar() {
     assert_eq!(side.axial, 0.0);
     assert!((side.torque - Vector3::new(0.0, -0.2, 0.0)).norm() < 1e-15);
 }
+
+fn z_up() -> Unit<Vector3<f64>> {
+    Unit::new_normalize(Vector3::new(0.0, 0.0, 1.0))
+}
+
+/// A model made at tip (0, 0, 0), axis +z, with a tip plane 2 mm deep along +z and a
+/// shaft plane 3 mm deep along +x, level with the axis 0.05 m above the tip.
+fn two_plane_model() -> LocalModel {
+    let x = Unit::new_normalize(Vector3::new(1.0, 0.0, 0.0));
+    LocalModel {
+        tip_plane: Some(Plane {
+            normal: z_up(),
+            anchor: Point3::new(0.0, 0.0, 0.002),
+            stiffness: 100.0,
+        }),
+        shaft_plane: Some(Plane {
+            normal: x,
+            anchor: Point3::new(0.003, 0.0, 0.05),
+            stiffness: 300.0,
+        }),
+        young_modulus: Some(4500.0),
+        kind: ForceModel::Calibrated,
+        ..LocalModel::free(7, 0.1, Point3::origin(), z_up())
+    }
+}
+
+#[test]
+fn the_model_pose_feels_the_indentation_of_each_plane() {
+    let m = two_plane_model();
+    let f = m.force(&m.tip, &m.axis);
+    // Orthogonal forces add: 100 N/m × 2 mm along z, 300 N/m × 3 mm along x.
+    assert!((f.force - Vector3::new(0.9, 0.0, 0.2)).norm() < 1e-12);
+    // Applied between the tip and the shaft contact, weighted by magnitude.
+    let expected_z = 0.05 * 0.9 / (0.9 + 0.2);
+    assert!((f.point - Point3::new(0.0, 0.0, expected_z)).norm() < 1e-12);
+}
+
+#[test]
+fn the_shaft_depth_follows_the_lever_of_its_contact() {
+    // Pivot about a trocar 0.1 m above the tip so the tip moves 2 mm in −x: the
+    // shaft point level with the anchor (0.05 m up, half way) moves 1 mm in −x.
+    let m = LocalModel {
+        tip_plane: None,
+        ..two_plane_model()
+    };
+    let trocar = Point3::new(0.0, 0.0, 0.1);
+    let tip = Point3::new(-0.002, 0.0, 0.0);
+    let axis = Unit::new_normalize(trocar - tip);
+    let f = m.force(&tip, &axis);
+    // Depth 3 mm + about 1 mm (to first order in the small tilt).
+    assert!((f.force.x / 300.0 - 0.004).abs() < 2e-5, "{}", f.force);
+    // Pivoting the tip 8 mm to +x moves the shaft contact 4 mm, past the 3 mm
+    // indentation: out of the plane, no force.
+    let away = Point3::new(0.008, 0.0, 0.0);
+    let axis = Unit::new_normalize(trocar - away);
+    assert_eq!(m.force(&away, &axis).force, Vector3::zeros());
+}
+
+#[test]
+fn a_free_model_gives_no_force() {
+    let m = LocalModel::free(0, 0.0, Point3::new(1.0, 2.0, 3.0), z_up());
+    assert!(!m.in_contact());
+    let f = m.force(&Point3::new(-5.0, 0.0, 0.0), &z_up());
+    assert_eq!(f.force, Vector3::zeros());
+}
+
+#[test]
+fn the_local_model_round_trips_through_the_wire() {
+    let m = two_plane_model();
+    let msg = crate::v1::LocalModel::from(&m);
+    let back = LocalModel::try_from(&msg).unwrap();
+    assert_eq!(back, m);
+    let free = LocalModel::free(3, 0.05, Point3::new(0.1, 0.2, 0.3), z_up());
+    assert_eq!(
+        LocalModel::try_from(&crate::v1::LocalModel::from(&free)).unwrap(),
+        free
+    );
+}
+
+#[test]
+fn bad_local_models_name_their_field() {
+    use wire::WireError;
+    let good = crate::v1::LocalModel::from(&two_plane_model());
+    type Spoil = Box<dyn Fn(&mut crate::v1::LocalModel)>;
+    let cases: Vec<(Spoil, WireError)> = vec![
+        (Box::new(|m| m.pose = None), WireError::Missing("pose")),
+        (
+            Box::new(|m| m.pose.as_mut().unwrap().tip.as_mut().unwrap().y = f64::NAN),
+            WireError::NotFinite("pose.tip"),
+        ),
+        (
+            Box::new(|m| m.pose.as_mut().unwrap().axis.as_mut().unwrap().z = 0.0),
+            WireError::NotUnit {
+                field: "pose.axis",
+                norm: 0.0,
+            },
+        ),
+        (
+            Box::new(|m| m.tip_plane.as_mut().unwrap().normal.as_mut().unwrap().z = 2.0),
+            WireError::NotUnit {
+                field: "tip_plane.normal",
+                norm: 2.0,
+            },
+        ),
+        (
+            Box::new(|m| m.shaft_plane.as_mut().unwrap().anchor = None),
+            WireError::Missing("shaft_plane.anchor"),
+        ),
+        (
+            Box::new(|m| m.shaft_plane.as_mut().unwrap().stiffness_n_per_m = -1.0),
+            WireError::Negative {
+                field: "shaft_plane.stiffness_n_per_m",
+                value: -1.0,
+            },
+        ),
+        (
+            Box::new(|m| m.tip_plane.as_mut().unwrap().stiffness_n_per_m = f64::INFINITY),
+            WireError::NotFinite("tip_plane.stiffness_n_per_m"),
+        ),
+        (
+            Box::new(|m| m.young_modulus_pa = Some(f64::NAN)),
+            WireError::NotFinite("young_modulus_pa"),
+        ),
+        (
+            Box::new(|m| m.sim_time_s = f64::NEG_INFINITY),
+            WireError::NotFinite("sim_time_s"),
+        ),
+    ];
+    for (spoil, expected) in cases {
+        let mut m = good;
+        spoil(&mut m);
+        assert_eq!(LocalModel::try_from(&m), Err(expected));
+    }
+    // An inactive plane's fields mean nothing, even when they are garbage.
+    let mut m = good;
+    let tip = m.tip_plane.as_mut().unwrap();
+    tip.active = false;
+    tip.stiffness_n_per_m = f64::NAN;
+    assert_eq!(LocalModel::try_from(&m).unwrap().tip_plane, None);
+}

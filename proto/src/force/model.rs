@@ -1,0 +1,111 @@
+//! The local model of one instrument at one tick, evaluated at any device pose.
+
+use nalgebra::{Point3, Unit, Vector3};
+
+use super::{Plane, combine, plane_force};
+
+/// How the apparent stiffnesses of a local model were obtained.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ForceModel {
+    /// The paper's: `λ` proportional to the average Young's modulus near the contact.
+    #[default]
+    Geometric,
+    /// Fitted to the elastic model's reaction on the vertices the instrument holds.
+    Calibrated,
+}
+
+/// The two-plane local model ("buffer model", paper §3) of one instrument, made by the
+/// server at one mechanics tick for one instrument pose, and evaluated by force loops
+/// at every haptic tick at the device's pose until the next one arrives.
+///
+/// Each plane's anchor is placed so that its penetration depth at the pose the model
+/// was made for is the indentation the instrument has made in the tissue (how the
+/// server chooses it is documented where it builds the model); moving the instrument
+/// deeper adds to that depth one for one, withdrawing takes from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocalModel {
+    /// Mechanics tick the model was made at.
+    pub tick: u64,
+    /// Simulated time of that tick, s.
+    pub sim_time: f64,
+    /// Instrument tip `P` the model was made for, m.
+    pub tip: Point3<f64>,
+    /// Instrument axis `Z` (tip toward handle) the model was made for.
+    pub axis: Unit<Vector3<f64>>,
+    /// The tip plane (normal `n_prox`), while the tip touches the tissue.
+    pub tip_plane: Option<Plane>,
+    /// The shaft plane (normal orthogonal to the axis), while the shaft touches it.
+    pub shaft_plane: Option<Plane>,
+    /// How the stiffnesses were obtained.
+    pub kind: ForceModel,
+    /// Average Young's modulus near the contact, Pa; `None` without contact.
+    pub young_modulus: Option<f64>,
+}
+
+/// A force on the instrument and the point of the axis where it applies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AppliedForce {
+    /// N, world frame.
+    pub force: Vector3<f64>,
+    /// m, world frame: on the instrument axis.
+    pub point: Point3<f64>,
+}
+
+impl LocalModel {
+    /// A model with no plane: no contact, no force.
+    pub fn free(tick: u64, sim_time: f64, tip: Point3<f64>, axis: Unit<Vector3<f64>>) -> Self {
+        LocalModel {
+            tick,
+            sim_time,
+            tip,
+            axis,
+            tip_plane: None,
+            shaft_plane: None,
+            kind: ForceModel::default(),
+            young_modulus: None,
+        }
+    }
+
+    /// Whether any plane is in use.
+    pub fn in_contact(&self) -> bool {
+        self.tip_plane.is_some() || self.shaft_plane.is_some()
+    }
+
+    /// The force of the model on the instrument at tip `tip` and axis `axis`.
+    ///
+    /// - Tip plane (eq. 8, corrected sign): depth `d₀ = (A₀ − P)·n₀` of the tip `P`,
+    ///   force `f₀ = λ₀ max(0, d₀) n₀`, applied at `P`.
+    /// - Shaft plane: the plane holds the axis, so the depth is taken at the point of
+    ///   the axis level with the anchor, `Q = P + max(0, (A₁ − P)·Z) Z`:
+    ///   `d₁ = (A₁ − Q)·n₁`, `f₁ = λ₁ max(0, d₁) n₁`, applied at `Q`. At the pose the
+    ///   model was made for, `n₁ ⟂ Z` and `d₁ = (A₁ − P)·n₁`, the paper's depth of the
+    ///   tip; when the instrument pivots about its trocar, the shaft contact moves by
+    ///   its own lever arm rather than the tip's.
+    /// - The two combine by eq. 9 ([`combine`]); the result applies at the
+    ///   magnitude-weighted point `C = (|f₀| P + |f₁| Q) / (|f₀| + |f₁|)`, which moves
+    ///   continuously from `P` to `Q` as the contacts change (and is `P` without force).
+    pub fn force(&self, tip: &Point3<f64>, axis: &Unit<Vector3<f64>>) -> AppliedForce {
+        let f0 = self
+            .tip_plane
+            .as_ref()
+            .map_or_else(Vector3::zeros, |p| plane_force(p, tip));
+        let (f1, q) = match &self.shaft_plane {
+            Some(plane) => {
+                let s = (plane.anchor - tip).dot(axis).max(0.0);
+                let q = tip + axis.into_inner() * s;
+                (plane_force(plane, &q), q)
+            }
+            None => (Vector3::zeros(), *tip),
+        };
+        let (m0, m1) = (f0.norm(), f1.norm());
+        let point = if m0 + m1 > 0.0 {
+            Point3::from((tip.coords * m0 + q.coords * m1) / (m0 + m1))
+        } else {
+            *tip
+        };
+        AppliedForce {
+            force: combine(&f0, &f1),
+            point,
+        }
+    }
+}
