@@ -6,6 +6,9 @@
 //! - [`blend`]: progressive transitions between successive local models.
 //! - [`device`]: the [`HapticDevice`] trait and two simulated devices, a scripted one
 //!   and a hand on a spring-damper.
+//! - [`force_loop`]: [`ForceLoop::tick`], one synchronous tick, and
+//!   [`ForceLoop::spawn`], the loop on its own thread against absolute deadlines.
+//! - [`stats`]: rate, jitter, force steps, model age, clamps, missed deadlines.
 //!
 //! One tick: read the device pose and publish it; take the newest model if one
 //! arrived; evaluate the blended models at the pose ([`crate::proto::force`] does the
@@ -15,10 +18,14 @@
 
 pub mod blend;
 pub mod device;
+pub mod force_loop;
 pub mod slot;
+pub mod stats;
 
 pub use blend::Blender;
 pub use device::{
     DevicePose, HandDevice, HandParams, HapticDevice, RenderedForce, ScriptedDevice, Trajectory,
 };
+pub use force_loop::{ConfigError, ForceLoop, ForceLoopConfig, ForceLoopHandle, clamp_force};
 pub use slot::{ModelInbox, PoseOutbox};
+pub use stats::{Jitter, Limit, LoopStats};

@@ -3,6 +3,18 @@
 //!
 //! The client speaks the contract in [`laparo_proto`]; the station, observer, replay
 //! and demo land with the server and recording work.
+//!
+//! # Force loop
+//!
+//! [`haptics`] renders the instrument's reaction force at haptic rate (1 kHz by
+//! default, 300–4000 Hz) from the local models the server sends at mechanics rate.
+//! The network side writes each [`LocalModel`](proto::force::LocalModel) into a
+//! [`ModelInbox`](haptics::ModelInbox) and reads the newest device pose from a
+//! [`PoseOutbox`](haptics::PoseOutbox); the loop evaluates the newest model at every
+//! device pose, blending each new model in over a transition time (1/60 s by default)
+//! so the force never jumps, clamps to the device's limit and renders. Run it on its
+//! own thread with [`ForceLoop::spawn`](haptics::ForceLoop::spawn), or drive
+//! [`ForceLoop::tick`](haptics::ForceLoop::tick) in simulated time.
 
 pub use laparo_proto as proto;
 

@@ -1,8 +1,9 @@
 //! Latest-value slots between the network side and the force-loop thread.
 //!
-//! A slot is a single-producer single-consumer triple buffer ([`triple_buffer`]):
-//! the writer never waits for the reader nor the reader for the writer, both sides
-//! are wait-free, and neither allocates after [`slot`] has built the three buffers.
+//! A slot is a single-producer single-consumer triple buffer (the
+//! [`triple_buffer`](mod@triple_buffer) crate): the writer never waits for the reader
+//! nor the reader for the writer, both sides are wait-free, and neither allocates
+//! after [`slot`] has built the three buffers.
 //! The reader always sees the newest complete value; values written faster than they
 //! are read are skipped, which is what a force loop wants (the newest local model, the
 //! newest device pose), never a queue.
