@@ -11,6 +11,7 @@ use crate::engine::elastic::ElasticModel;
 use crate::engine::integrate::{
     Imposed, Integrator, IntegratorConfig, IntegratorKind, State, StepReport,
 };
+use crate::engine::local_model::LocalModelStage;
 use crate::engine::material::Material;
 use crate::engine::mesh::{TetMesh, read_gmsh, read_gmsh_file};
 
@@ -34,8 +35,10 @@ pub struct Simulation {
     pub fixed: Vec<u32>,
     /// The scene's instruments, in declaration order.
     pub instruments: Vec<Instrument>,
-    /// The contact stage; built only for a scene with instruments.
+    /// The contact stage; built only for a scene with instruments that push tissue.
     pub contact: Option<ContactStage>,
+    /// The force stage (local models and forces); built with the contact stage.
+    pub forces: Option<LocalModelStage>,
     /// How long the last tick's stages took.
     pub last_timing: TickTiming,
     /// Ticks done.
@@ -51,6 +54,8 @@ pub struct TickTiming {
     pub elastic: f64,
     /// The contact stage, before and after the elastic step.
     pub contact: f64,
+    /// The force stage: local models and forces.
+    pub forces: f64,
 }
 
 impl Simulation {
@@ -91,12 +96,23 @@ impl Simulation {
             );
         }
         let t3 = Instant::now();
+        self.tick += 1;
+        self.time += self.dt;
+        if let Some(forces) = &mut self.forces {
+            forces.update(
+                self.tick,
+                self.time,
+                &self.instruments,
+                &self.mesh.surface,
+                &self.state.x,
+            );
+        }
+        let t4 = Instant::now();
         self.last_timing = TickTiming {
             elastic: (t2 - t1).as_secs_f64(),
             contact: ((t1 - t0) + (t3 - t2)).as_secs_f64(),
+            forces: (t4 - t3).as_secs_f64(),
         };
-        self.tick += 1;
-        self.time += self.dt;
         report
     }
 
@@ -171,6 +187,8 @@ impl Scene {
         let pushes = instruments.iter().any(|i| i.tip_contact || i.shaft_contact);
         let contact = pushes
             .then(|| ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len()));
+        let forces = pushes
+            .then(|| LocalModelStage::new(self.force_model.kind, &mesh, &model, &instruments));
         Ok(Simulation {
             scene: self.clone(),
             gravity: Vector3::from(self.gravity),
@@ -183,6 +201,7 @@ impl Scene {
             fixed,
             instruments,
             contact,
+            forces,
             last_timing: TickTiming::default(),
             tick: 0,
             time: 0.0,

@@ -1,0 +1,284 @@
+//! Reaction forces (paper §3): per instrument and per tick, the two-plane local model a
+//! force loop extrapolates from, and the force it gives at the tick's pose.
+//!
+//! The local model ([`laparo_proto::force::LocalModel`]) is two planes:
+//! - the **tip plane**, normal `n_prox` (eq. 7, from the contact stage), while the axis
+//!   meets the surface;
+//! - the **shaft plane**, containing the axis, normal the average of `Z × ê` over the
+//!   shaft's neighbouring edges (each oriented from the tissue toward the axis), while
+//!   the shaft holds vertices.
+//!
+//! # Anchors: penetration depth that survives a steady push
+//!
+//! Eq. 8 takes the force from the depth of the instrument in the plane's half-space.
+//! A plane through the tissue as the instrument has pushed it (`P_prox`, or the axis
+//! itself for the shaft plane) gives zero depth at the pose the model was made for: a
+//! trainee holding the instrument still inside the liver would feel nothing. So each
+//! plane is moved out of the tissue, along its normal, by the **indentation** `δ` the
+//! instrument has made:
+//!
+//! `δ = max(0, max_i (F_i − x_i)·n)` over the vertices `i` the plane's contact holds,
+//!
+//! where `x_i` is where the vertex is now and `F_i` where it was when last free: the
+//! surface before the instrument took it, with the sag under gravity and the dents of
+//! other instruments already in it ([`free`]). The anchor is `A = X + δ n` with `X` the
+//! tip `P` (tip plane) or the point of the axis level with the held vertices (shaft
+//! plane). At the model's pose the depth is then `δ`; pushing deeper by `h` makes it
+//! `δ + h`, withdrawing lowers it until the force vanishes; holding still keeps it, and
+//! the force, steady.
+//!
+//! # Stiffness
+//!
+//! - `geometric` (the paper): `λ` proportional to the average Young's modulus near the
+//!   contact ([`stiffness::geometric`]);
+//! - `calibrated`: `λ` and the anchor fitted so that the model reproduces, at the
+//!   tick's pose, the elastic model's reaction on the vertices each plane holds
+//!   ([`stiffness::calibrate`]).
+//!
+//! Which held vertices belong to which plane: with a tip contact, those within one
+//! radius of the tip along the axis (`(x_i − P)·Z ≤ r`) are the tip's; the others are
+//! the shaft's.
+
+pub mod free;
+pub mod planes;
+pub mod stiffness;
+
+use laparo_proto::force::{DeviceForce, ForceModel, LocalModel, Plane, split};
+use nalgebra::{Point3, Unit, Vector3};
+
+use crate::engine::contact::{Instrument, InstrumentPose};
+use crate::engine::elastic::ElasticModel;
+use crate::engine::mesh::{Surface, TetMesh};
+use crate::engine::scene::ForceModelKind;
+use free::FreeSurface;
+use stiffness::{Calibration, VertexMaterial};
+
+/// The force stage of a scene with instruments: builds every instrument's local model
+/// and force after the contact stage. Allocates nothing per tick.
+#[derive(Debug)]
+pub struct LocalModelStage {
+    kind: ForceModel,
+    material: VertexMaterial,
+    free: FreeSurface,
+    calibration: Vec<Calibration>,
+    /// The last local model of each instrument, in scene order.
+    pub models: Vec<LocalModel>,
+    /// The force of each instrument's model at its pose, split for the device.
+    pub forces: Vec<DeviceForce>,
+}
+
+/// What one plane's contact holds: the inputs of its anchor and stiffness.
+#[derive(Clone, Copy, Debug, Default)]
+struct Held {
+    /// Vertices counted.
+    count: u32,
+    /// Indentation `δ`, m (≥ 0).
+    indentation: f64,
+    /// Tissue reaction along the plane's normal, N.
+    reaction: f64,
+    /// Sum of the vertices' Young's moduli and Poisson ratios (for averages).
+    young: f64,
+    poisson: f64,
+    /// Extent of the vertices along the axis, m: `[min, max]` of `(x_i − P)·Z`.
+    along: [f64; 2],
+}
+
+impl Held {
+    fn new() -> Self {
+        Held {
+            along: [f64::INFINITY, f64::NEG_INFINITY],
+            ..Held::default()
+        }
+    }
+
+    fn add(&mut self, depth: f64, reaction: f64, material: (f64, f64), s: f64) {
+        self.count += 1;
+        self.indentation = self.indentation.max(depth);
+        self.reaction += reaction;
+        self.young += material.0;
+        self.poisson += material.1;
+        self.along = [self.along[0].min(s), self.along[1].max(s)];
+    }
+}
+
+impl LocalModelStage {
+    /// A stage for `instruments` instruments on `mesh` with `model`'s materials.
+    pub fn new(
+        kind: ForceModelKind,
+        mesh: &TetMesh,
+        model: &ElasticModel,
+        instruments: &[Instrument],
+    ) -> Self {
+        let kind = match kind {
+            ForceModelKind::Geometric => ForceModel::Geometric,
+            ForceModelKind::Calibrated => ForceModel::Calibrated,
+        };
+        let axis = Unit::new_unchecked(Vector3::z());
+        LocalModelStage {
+            kind,
+            material: VertexMaterial::new(mesh, model),
+            free: FreeSurface::new(&mesh.positions),
+            calibration: vec![Calibration::default(); instruments.len()],
+            models: vec![LocalModel::free(0, 0.0, Point3::origin(), axis); instruments.len()],
+            forces: vec![
+                DeviceForce {
+                    force: Vector3::zeros(),
+                    axial: 0.0,
+                    torque: Vector3::zeros(),
+                };
+                instruments.len()
+            ],
+        }
+    }
+
+    /// After the contact stage of tick `tick` (simulated time `time`): each
+    /// instrument's local model and force, from the positions `x`.
+    pub fn update(
+        &mut self,
+        tick: u64,
+        time: f64,
+        instruments: &[Instrument],
+        surface: &Surface,
+        x: &[Point3<f64>],
+    ) {
+        for (k, ins) in instruments.iter().enumerate() {
+            let model = match ins.current {
+                Some(pose) => self.model_of(k, ins, &pose, surface, x, tick, time),
+                None => {
+                    self.calibration[k] = Calibration::default();
+                    let last = &self.models[k];
+                    LocalModel::free(tick, time, last.tip, last.axis)
+                }
+            };
+            let applied = model.force(&model.tip, &model.axis);
+            self.forces[k] = split(&applied.force, &applied.point, &model.axis, &ins.trocar);
+            self.models[k] = model;
+        }
+        self.free.update(instruments, surface, x);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn model_of(
+        &mut self,
+        k: usize,
+        ins: &Instrument,
+        pose: &InstrumentPose,
+        surface: &Surface,
+        x: &[Point3<f64>],
+        tick: u64,
+        time: f64,
+    ) -> LocalModel {
+        let mut model = LocalModel::free(tick, time, pose.tip, pose.axis);
+        model.kind = self.kind;
+        let (p, z, r) = (pose.tip, pose.axis, ins.radius);
+        let tip_contact = tip_contact(ins, &pose.tip, &pose.axis);
+        let tip_normal = tip_contact.map(|(n, _)| n);
+        let shaft_normal = planes::shaft_normal(ins, surface, x);
+        let (mut tip, mut shaft) = (Held::new(), Held::new());
+        for (i, &v) in ins.held.iter().enumerate() {
+            let vi = v as usize;
+            let s = (x[vi] - p).dot(&z);
+            let (held, n) = match (tip_normal, shaft_normal) {
+                (Some(n), _) if s <= r => (&mut tip, n),
+                (_, Some(n)) => (&mut shaft, n),
+                (Some(n), None) => (&mut tip, n),
+                (None, None) => continue,
+            };
+            let pushed = self.free.position(v) - x[vi];
+            let reaction = ins.report.held_reactions.get(i).map_or(0.0, |f| f.dot(&n));
+            held.add(pushed.dot(&n), reaction, self.material.at(v), s);
+        }
+        let calibration = &mut self.calibration[k];
+        model.tip_plane = match tip_contact {
+            Some((n, triangle)) => {
+                // Just touching, nothing held yet: the material under the tip.
+                let material = match (tip.count, triangle) {
+                    (0, Some(t)) => self.material.triangle(surface.triangles[t as usize]),
+                    _ => tip.material(),
+                };
+                let k_geo = stiffness::geometric_tip(r, material);
+                let (lambda, depth) = match self.kind {
+                    ForceModel::Geometric => (k_geo, tip.indentation),
+                    ForceModel::Calibrated => calibration.tip.fit(tip.sample(), k_geo),
+                };
+                model.young_modulus = Some(material.0);
+                Some(Plane {
+                    normal: n,
+                    anchor: p + n.into_inner() * depth,
+                    stiffness: lambda,
+                })
+            }
+            _ => {
+                calibration.tip = Default::default();
+                None
+            }
+        };
+        model.shaft_plane = match shaft_normal {
+            Some(n) if shaft.count > 0 => {
+                let material = shaft.material();
+                let contact_length = shaft.along[1] - shaft.along[0];
+                let k_geo = stiffness::geometric_shaft(r, contact_length, material);
+                let (lambda, depth) = match self.kind {
+                    ForceModel::Geometric => (k_geo, shaft.indentation),
+                    ForceModel::Calibrated => calibration.shaft.fit(shaft.sample(), k_geo),
+                };
+                let level = (0.5 * (shaft.along[0] + shaft.along[1])).clamp(0.0, ins.length);
+                let e = if tip.count > 0 {
+                    (tip.young + shaft.young) / f64::from(tip.count + shaft.count)
+                } else {
+                    material.0
+                };
+                model.young_modulus = Some(e);
+                Some(Plane {
+                    normal: n,
+                    anchor: p + z.into_inner() * level + n.into_inner() * depth,
+                    stiffness: lambda,
+                })
+            }
+            _ => {
+                calibration.shaft = Default::default();
+                None
+            }
+        };
+        model
+    }
+}
+
+/// The tip contact `(n_prox, triangle)`: where the axis met the surface this
+/// tick (the contact stage's §2.5), or else, while the tip holds the tissue still, the
+/// surface point nearest the tip when it lies ahead of the tip (`(P − q)·Z ≥ r/2`)
+/// and within `1.5 r` of it. A pressed tip keeps its triangle at `r` straight ahead
+/// (`r cos θ` ahead for an axis at θ from the normal, so up to 60°); a point beside
+/// the tip, level with it, is the shaft's. The 1.5 `r` margin is the one the shaft's
+/// neighbouring edges use.
+fn tip_contact(
+    ins: &Instrument,
+    tip: &Point3<f64>,
+    axis: &Unit<Vector3<f64>>,
+) -> Option<(Unit<Vector3<f64>>, Option<u32>)> {
+    if let Some(t) = ins.report.tip {
+        return Some((t.n_prox, Some(t.triangle)));
+    }
+    let (q, n) = ins.report.nearest?;
+    let r = ins.radius;
+    let ahead = (tip - q).dot(axis);
+    ((q - tip).norm() <= 1.5 * r && ahead >= 0.5 * r).then_some((n, None))
+}
+
+impl Held {
+    /// Average `(E, ν)` of the counted vertices (at least one).
+    fn material(&self) -> (f64, f64) {
+        let n = f64::from(self.count.max(1));
+        (self.young / n, self.poisson / n)
+    }
+
+    fn sample(&self) -> stiffness::Sample {
+        stiffness::Sample {
+            indentation: self.indentation,
+            reaction: self.reaction,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
