@@ -1,0 +1,105 @@
+//! Reaction forces on the default liver: a steady push held still gives a steady force
+//! out of the tissue that grows with depth and with Young's modulus, for both force
+//! models; withdrawing gives none.
+
+mod common;
+
+use common::contact::*;
+use laparo_server::engine::scene::{ForceModelKind, Scene};
+use nalgebra::Vector3;
+
+/// What a tip press into the front of the default liver gave.
+struct Press {
+    /// The server's force at each tick of the hold, N.
+    hold: Vec<Vector3<f64>>,
+    /// The force once withdrawn and once out of the body.
+    withdrawn: [Vector3<f64>; 2],
+}
+
+/// Settles the default liver (modulus `e`, force model `kind`), pushes the tip along
+/// −z into its front face to `depth` past the surface over 0.5 s, holds 0.5 s, backs
+/// out over 0.25 s and leaves.
+fn press(kind: ForceModelKind, e: f64, depth: f64) -> Press {
+    let mut scene = Scene::default_scene();
+    scene.material.young_modulus = e;
+    scene.force_model.kind = kind;
+    let mut sim = scene.build().unwrap();
+    for _ in 0..60 {
+        sim.tick();
+    }
+    let front = front_point(&sim);
+    let (x, y, z0) = (front.x, front.y, front.z + 0.01);
+    let mut hold = Vec::new();
+    let mut withdrawn = [Vector3::repeat(f64::NAN); 2];
+    for k in 0..100 {
+        let t = k as f64 / 60.0;
+        let z = if t < 0.5 {
+            z0 - (0.01 + depth) * t / 0.5
+        } else if t < 1.0 {
+            z0 - 0.01 - depth
+        } else {
+            (z0 - 0.01 - depth + (0.01 + depth) * (t - 1.0) / 0.25).min(z0)
+        };
+        let in_body = t < 1.5;
+        sim.set_pose(0, in_body.then(|| pose([x, y, z], [0.0, 0.0, 1.0])));
+        sim.tick();
+        let force = sim.forces.as_ref().unwrap().forces[0].force;
+        if (0.75..1.0).contains(&t) {
+            hold.push(force);
+        }
+        if k == 88 {
+            withdrawn[0] = force;
+        }
+        if k == 99 {
+            withdrawn[1] = force;
+        }
+    }
+    Press { hold, withdrawn }
+}
+
+/// Largest relative spread of the force magnitude over a hold.
+fn spread(hold: &[Vector3<f64>]) -> f64 {
+    let (lo, hi) = hold.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
+        (lo.min(f.norm()), hi.max(f.norm()))
+    });
+    (hi - lo) / hi
+}
+
+#[test]
+fn a_steady_push_gives_a_steady_force_growing_with_depth_and_stiffness() {
+    for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
+        let base = press(kind, 4500.0, 0.006);
+        let deeper = press(kind, 4500.0, 0.012);
+        let stiffer = press(kind, 18000.0, 0.006);
+        for (name, p) in [("base", &base), ("deeper", &deeper), ("stiffer", &stiffer)] {
+            let last = p.hold.last().unwrap();
+            // Out of the front face (+z), non-zero, steady to 2% while held still.
+            assert!(last.z > 0.05, "{kind:?} {name}: {last}");
+            assert!(last.z > 0.8 * last.norm(), "{kind:?} {name}: {last}");
+            assert!(
+                spread(&p.hold) < 0.02,
+                "{kind:?} {name}: spread {}",
+                spread(&p.hold)
+            );
+            // Withdrawn (still in the body, in front of the liver) and gone: nothing.
+            assert_eq!(p.withdrawn, [Vector3::zeros(); 2], "{kind:?} {name}");
+        }
+        let f = |p: &Press| p.hold.last().unwrap().norm();
+        // Twice the depth past the surface (the indentation is depth + r: 11 → 17 mm).
+        assert!(
+            f(&deeper) > 1.3 * f(&base),
+            "{kind:?}: {} vs {}",
+            f(&deeper),
+            f(&base)
+        );
+        // Four times the modulus: the geometric λ scales with E exactly, and the
+        // elastic model's reaction at the same indentation with it too (linear
+        // elasticity, gravity aside).
+        assert!(
+            f(&stiffer) > 3.0 * f(&base),
+            "{kind:?}: {} vs {}",
+            f(&stiffer),
+            f(&base)
+        );
+    }
+}
