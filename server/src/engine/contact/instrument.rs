@@ -21,6 +21,8 @@ pub struct Instrument {
     /// Whether the shaft pushes tissue. Without it the instrument is its tip alone,
     /// a ball of radius r at `P`, as in a point-contact simulator.
     pub shaft_contact: bool,
+    /// Coulomb friction coefficient μ of the hold (see the contact stage).
+    pub friction: f64,
     /// The pose at the end of the previous tick; `None` while out of the body.
     pub previous: Option<InstrumentPose>,
     /// The pose for this tick; `None` takes the instrument out of the body.
@@ -76,6 +78,7 @@ impl Instrument {
             trocar: Point3::from(spec.trocar),
             tip_contact: spec.tip_contact,
             shaft_contact: spec.shaft_contact,
+            friction: spec.friction,
             previous: None,
             current: None,
             held: Vec::with_capacity(vertices),

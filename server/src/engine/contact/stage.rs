@@ -407,6 +407,7 @@ impl ContactStage {
         let bit = 1u8 << k;
         let pose = ins.current.expect("only instruments in the body hold");
         let length = ins.active_length();
+        let ins_params = (ins.tip_contact, ins.friction);
         let holders = &mut self.holders;
         let s = &self.s;
         ins.held.retain(|&v| {
@@ -414,8 +415,7 @@ impl ContactStage {
             if s.moved_mark[vi] == s.mark {
                 return true;
             }
-            let away = super::closest::closest_point_axis(&state.x[vi], &pose, length).offset;
-            let keep = state.reaction[vi].dot(&away) <= 0.0;
+            let keep = stays_held(&state.x[vi], &state.reaction[vi], &pose, length, ins_params);
             if !keep {
                 holders[vi] &= !bit;
                 if holders[vi] == 0 && !s.fixed[vi] {
@@ -478,6 +478,41 @@ impl ContactStage {
             }
         }
     }
+}
+
+/// Whether a held vertex at `x`, on which the tissue exerts `reaction`, stays held:
+/// Coulomb's law on the instrument's surface.
+///
+/// `m` is the instrument's outward surface normal at the vertex: `−Z` for a vertex at
+/// or beyond the tip of an instrument whose tip presses (§2.5 lays the tip triangle on
+/// the plane ⊥ Z ahead of the tip: a flat end), else the radial direction from the
+/// axis. The tissue pushes the vertex onto the instrument with `N = −reaction·m`; the
+/// rest, `T`, is tangential. The vertex stays held while `N > 0` and `|T| ≤ μ N`:
+/// pulled away, it is released and the tissue relaxes; dragged harder than friction
+/// allows, it is released and slides — the elastic step moves it, the push-out puts it
+/// back on the surface of the instrument, and it is held there. Without the friction
+/// bound a held vertex followed the instrument whatever the tissue's pull, so that a
+/// slid or withdrawn instrument kept dragging tissue it no longer pressed.
+fn stays_held(
+    x: &Point3<f64>,
+    reaction: &Vector3<f64>,
+    pose: &InstrumentPose,
+    length: f64,
+    (tip_contact, friction): (bool, f64),
+) -> bool {
+    let c = super::closest::closest_point_axis(x, pose, length);
+    let at_tip = c.beta <= 0.0 && (x - pose.tip).dot(&pose.axis) <= 0.0;
+    let m = if at_tip && tip_contact {
+        -pose.axis.into_inner()
+    } else {
+        match c.offset.try_normalize(0.0) {
+            Some(m) => m,
+            None => return false,
+        }
+    };
+    let normal = -reaction.dot(&m);
+    let tangential = (reaction + m * normal).norm();
+    normal > 0.0 && tangential <= friction * normal
 }
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves

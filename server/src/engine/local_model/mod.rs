@@ -31,9 +31,11 @@
 //!
 //! - `geometric` (the paper): `λ` proportional to the average Young's modulus near the
 //!   contact ([`stiffness::geometric`]);
-//! - `calibrated`: `λ` and the anchor fitted so that the model reproduces, at the
-//!   tick's pose, the elastic model's reaction on the vertices each plane holds
-//!   ([`stiffness::calibrate`]).
+//! - `calibrated`: the normal, `λ` and the anchor fitted so that the model reproduces,
+//!   at the tick's pose, the elastic model's reaction on the vertices each plane holds
+//!   ([`stiffness::fitted_normal`], [`stiffness::Fit`]): the whole force, the drag of
+//!   tissue that sticks to a sliding instrument included, where the geometric planes
+//!   give only a push along the surface normal.
 //!
 //! Which held vertices belong to which plane: with a tip contact, those within one
 //! radius of the tip along the axis (`(x_i − P)·Z ≤ r`) are the tip's; the others are
@@ -74,8 +76,8 @@ struct Held {
     count: u32,
     /// Indentation `δ`, m (≥ 0).
     indentation: f64,
-    /// Tissue reaction along the plane's normal, N.
-    reaction: f64,
+    /// The tissue's force on the instrument through these vertices, N.
+    reaction: Vector3<f64>,
     /// Sum of the vertices' Young's moduli and Poisson ratios (for averages).
     young: f64,
     poisson: f64,
@@ -91,7 +93,7 @@ impl Held {
         }
     }
 
-    fn add(&mut self, depth: f64, reaction: f64, material: (f64, f64), s: f64) {
+    fn add(&mut self, depth: f64, reaction: Vector3<f64>, material: (f64, f64), s: f64) {
         self.count += 1;
         self.indentation = self.indentation.max(depth);
         self.reaction += reaction;
@@ -185,7 +187,8 @@ impl LocalModelStage {
                 (None, None) => continue,
             };
             let pushed = self.free.position(v) - x[vi];
-            let reaction = ins.report.held_reactions.get(i).map_or(0.0, |f| f.dot(&n));
+            let reaction = ins.report.held_reactions.get(i).copied();
+            let reaction = reaction.unwrap_or_else(Vector3::zeros);
             held.add(pushed.dot(&n), reaction, self.material.at(v), s);
         }
         let calibration = &mut self.calibration[k];
@@ -197,9 +200,13 @@ impl LocalModelStage {
                     _ => tip.material(),
                 };
                 let k_geo = stiffness::geometric_tip(r, material);
-                let (lambda, depth) = match self.kind {
-                    ForceModel::Geometric => (k_geo, tip.indentation),
-                    ForceModel::Calibrated => calibration.tip.fit(tip.sample(), k_geo),
+                let (lambda, depth, n) = match self.kind {
+                    ForceModel::Geometric => (k_geo, tip.indentation, n),
+                    ForceModel::Calibrated => {
+                        let n = stiffness::fitted_normal(&tip.reaction, n, None);
+                        let (lambda, depth) = calibration.tip.fit(tip.sample(&n), k_geo);
+                        (lambda, depth, n)
+                    }
                 };
                 model.young_modulus = Some(material.0);
                 Some(Plane {
@@ -218,9 +225,13 @@ impl LocalModelStage {
                 let material = shaft.material();
                 let contact_length = shaft.along[1] - shaft.along[0];
                 let k_geo = stiffness::geometric_shaft(r, contact_length, material);
-                let (lambda, depth) = match self.kind {
-                    ForceModel::Geometric => (k_geo, shaft.indentation),
-                    ForceModel::Calibrated => calibration.shaft.fit(shaft.sample(), k_geo),
+                let (lambda, depth, n) = match self.kind {
+                    ForceModel::Geometric => (k_geo, shaft.indentation, n),
+                    ForceModel::Calibrated => {
+                        let n = stiffness::fitted_normal(&shaft.reaction, n, Some(&z));
+                        let (lambda, depth) = calibration.shaft.fit(shaft.sample(&n), k_geo);
+                        (lambda, depth, n)
+                    }
                 };
                 let level = (0.5 * (shaft.along[0] + shaft.along[1])).clamp(0.0, ins.length);
                 let e = if tip.count > 0 {
@@ -272,10 +283,11 @@ impl Held {
         (self.young / n, self.poisson / n)
     }
 
-    fn sample(&self) -> stiffness::Sample {
+    /// The calibration sample along the fitted normal `n`.
+    fn sample(&self, n: &Unit<Vector3<f64>>) -> stiffness::Sample {
         stiffness::Sample {
             indentation: self.indentation,
-            reaction: self.reaction,
+            reaction: self.reaction.dot(n),
         }
     }
 }

@@ -1,5 +1,7 @@
 //! The apparent stiffness `λ` of the local-model planes (paper §3, eq. 8).
 
+use nalgebra::{Unit, Vector3};
+
 use crate::engine::elastic::ElasticModel;
 use crate::engine::mesh::TetMesh;
 
@@ -68,6 +70,31 @@ pub fn geometric_tip(radius: f64, (e, nu): (f64, f64)) -> f64 {
 pub fn geometric_shaft(radius: f64, length: f64, material: (f64, f64)) -> f64 {
     let area = 2.0 * radius * (length.max(0.0) + 2.0 * radius);
     geometric_tip((area / std::f64::consts::PI).sqrt(), material)
+}
+
+/// The calibrated plane's normal: the direction of the tissue's force `reaction` on
+/// the plane's vertices (for the shaft plane, its part orthogonal to the axis `Z`, so
+/// that the plane still holds the axis), when that force pushes out of the tissue
+/// (`reaction · geometric > 0`) and is not negligible; else the geometric normal.
+///
+/// With the normal along the reaction, the plane's force at the tick's pose is the
+/// reaction itself, tangential drag included (tissue held by the instrument sticks to
+/// it up to the friction bound and drags along a sliding instrument), where a plane
+/// along the surface normal renders only the normal push.
+pub fn fitted_normal(
+    reaction: &Vector3<f64>,
+    geometric: Unit<Vector3<f64>>,
+    axis: Option<&Unit<Vector3<f64>>>,
+) -> Unit<Vector3<f64>> {
+    let along = match axis {
+        Some(z) => reaction - z.into_inner() * reaction.dot(z),
+        None => *reaction,
+    };
+    // 1e-9 N: far below any force a device renders, far above rounding of the sum.
+    match Unit::try_new(along, 1e-9) {
+        Some(n) if n.dot(&geometric) > 0.0 => n,
+        _ => geometric,
+    }
 }
 
 /// What one plane's contact gives for calibration.

@@ -135,12 +135,14 @@ fn the_calibrated_model_reproduces_the_elastic_reaction() {
         model.shaft_plane.is_none(),
         "a straight push is the tip's alone"
     );
-    let n = model.tip_plane.unwrap().normal;
-    // The tip plane's force at the model pose is the reaction along its normal, to
-    // rounding: that is what the calibration fits.
-    let along: f64 = ins.report.held_reactions.iter().map(|r| r.dot(&n)).sum();
+    // The tip plane's force at the model pose is the tissue's force on the held
+    // vertices, to rounding: that is what the calibration fits (normal, λ, anchor).
+    let reaction: Vector3<f64> = ins.report.held_reactions.iter().sum();
     let f = hold.last().unwrap();
-    assert!((f.dot(&n) - along).abs() <= 1e-9 * along, "{f} vs {along}");
+    assert!(
+        (f - reaction).norm() <= 1e-9 * reaction.norm(),
+        "{f} vs {reaction}"
+    );
     assert_eq!(model.kind, ForceModel::Calibrated);
 }
 
@@ -170,9 +172,11 @@ fn the_shaft_plane_lies_along_a_sideways_push() {
         let plane = model.shaft_plane.expect("the shaft presses");
         assert!(plane.normal.z > 0.99, "{kind:?}: normal {:?}", plane.normal);
         let depth = (plane.anchor - model.tip).dot(&plane.normal);
-        // The axis 4 mm below the face, the tissue under it r = 5 mm further.
+        // The axis 4 mm below the face, the tissue under it r = 5 mm further: 9 mm,
+        // give or take the bulge beside the shaft (a vertex taken there was last free
+        // above the face; ν = 0.45 tissue bulges where it is pushed aside).
         if kind == ForceModelKind::Geometric {
-            assert!(depth > 0.0075 && depth < 0.0095, "{kind:?}: depth {depth}");
+            assert!(depth > 0.0075 && depth < 0.0105, "{kind:?}: depth {depth}");
         }
         // The force points out and the torque about the trocar is that of a force at
         // the contact, on the block (0 ≤ x ≤ 0.1), not at the tip.

@@ -155,6 +155,17 @@ pub struct InstrumentSpec {
     /// Whether the shaft pushes tissue.
     #[serde(default = "yes")]
     pub shaft_contact: bool,
+    /// Coulomb friction coefficient μ between instrument and tissue: a held vertex
+    /// stays held while the tissue's tangential force on it is at most μ times its
+    /// normal push, and slips otherwise.
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+}
+
+/// μ = 0.3: wet soft tissue on a polished instrument slides easily; higher values make
+/// the tissue stick and drag along with a sliding instrument.
+fn default_friction() -> f64 {
+    1.0
 }
 
 /// How reaction forces are computed.
@@ -351,6 +362,12 @@ impl Scene {
             }
             if ins.trocar.iter().any(|v| !v.is_finite()) {
                 return Err(self.invalid(format!("{path}.trocar"), "must be finite"));
+            }
+            if !(ins.friction.is_finite() && ins.friction >= 0.0) {
+                return Err(self.invalid(
+                    format!("{path}.friction"),
+                    format!("{} must be finite and ≥ 0", ins.friction),
+                ));
             }
         }
         Ok(())
