@@ -19,7 +19,7 @@ use super::blend::Blender;
 use super::device::{DevicePose, HapticDevice};
 use super::slot::{ModelInbox, ModelSlot, PoseOutbox, PoseSlot, slot};
 use super::stats::{Limit, LoopStats, StatsRecorder};
-use crate::proto::force::split;
+use crate::proto::force::{DeviceForce, split};
 
 /// The default haptic rate, Hz.
 pub const DEFAULT_RATE_HZ: f64 = 1000.0;
@@ -123,6 +123,7 @@ pub struct ForceLoop<D: HapticDevice> {
     poses: PoseSlot,
     blender: Blender,
     stats: StatsRecorder,
+    rendered: DeviceForce,
 }
 
 impl<D: HapticDevice> ForceLoop<D> {
@@ -143,6 +144,11 @@ impl<D: HapticDevice> ForceLoop<D> {
             poses,
             blender: Blender::new(config.transition_s),
             stats: StatsRecorder::new(config.period_s()),
+            rendered: DeviceForce {
+                force: Vector3::zeros(),
+                axial: 0.0,
+                torque: Vector3::zeros(),
+            },
         };
         Ok((force_loop, inbox, outbox))
     }
@@ -162,12 +168,18 @@ impl<D: HapticDevice> ForceLoop<D> {
         let (force, limit) = clamp_force(&applied.force, self.device.max_force());
         let rendered = split(&force, &applied.point, &axis, &self.config.trocar);
         self.device.render(t, &rendered);
+        self.rendered = rendered;
         let model = self
             .blender
             .current()
             .zip(self.blender.arrival_time())
             .map(|(m, arrival)| (arrival, m.tick));
         self.stats.record_tick(t, &force, limit, model);
+    }
+
+    /// What the last tick rendered (after the clamp).
+    pub fn rendered(&self) -> &DeviceForce {
+        &self.rendered
     }
 
     /// The configuration.

@@ -43,9 +43,10 @@ pub struct ContactReport {
     pub moved_vertices: u32,
     /// The tip contact, if the axis met the surface within the shaft (§2.5).
     pub tip: Option<TipContact>,
-    /// The surface point closest to the tip, with its normal (eq. 7), when the axis
-    /// does not meet the surface: where a tip contact would begin.
-    pub nearest: Option<(Point3<f64>, Unit<Vector3<f64>>)>,
+    /// The surface point closest to the tip within the approach reach, with its
+    /// normal (eq. 7), when the axis does not meet the surface: where a tip contact
+    /// would begin (see [`super::stage::APPROACH_SPEED`]).
+    pub nearest: Option<NearestSurface>,
     /// Surface edges with a held vertex that lie along the shaft: the "neighbouring
     /// edges" of the shaft plane (§3).
     pub shaft_edges: Vec<u32>,
@@ -55,6 +56,17 @@ pub struct ContactReport {
     /// The elastic reaction on each held vertex, N, in the order of
     /// [`Instrument::held`].
     pub held_reactions: Vec<Vector3<f64>>,
+}
+
+/// The surface point nearest the tip.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NearestSurface {
+    /// The point, m.
+    pub point: Point3<f64>,
+    /// The surface normal there (eq. 7), out of the tissue.
+    pub normal: Unit<Vector3<f64>>,
+    /// The surface triangle that holds it.
+    pub triangle: u32,
 }
 
 /// The tip contact of §2.5.

@@ -45,6 +45,6 @@ pub mod stage;
 mod tip;
 
 pub use crossing::{Crossing, CrossingKind, EdgeEnd, MovingEdge, closer_to_axis, edge_crossing};
-pub use instrument::{ContactReport, Instrument, TipContact};
+pub use instrument::{ContactReport, Instrument, NearestSurface, TipContact};
 pub use pose::{InstrumentPose, rigid_motion};
 pub use stage::{ContactStage, ContactStats};

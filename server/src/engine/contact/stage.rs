@@ -113,6 +113,12 @@ pub struct ContactStage {
 /// nothing, since the last instrument's push can put a vertex back into the first.
 const FINAL_ROUNDS: usize = 4;
 
+/// Speed of a hand moving an instrument briskly, m/s: the approach reach of the tip is
+/// `r` plus how far the tip goes at this speed in two ticks (the local model is used
+/// until the next one arrives, one tick later, and is one tick old when it does), so
+/// that a force loop has the tissue's plane before the tip reaches it.
+pub const APPROACH_SPEED: f64 = 0.5;
+
 /// Instruments a stage handles: one bit each in `holders`.
 pub const MAX_INSTRUMENTS: usize = 8;
 
@@ -279,7 +285,16 @@ impl ContactStage {
                 }
             }
             if ins.report.tip.is_none() {
-                ins.report.nearest = nearest_point(&self.s, surface, &pose, &state.x);
+                // The approach: the surface ahead of a tip that does not touch it yet,
+                // for the force model's tip plane.
+                let reach = ins.radius + APPROACH_SPEED * 2.0 * dt;
+                let mut query = Box3::empty();
+                query.cover(&pose.tip);
+                self.s.triangles.clear();
+                self.broadphase[k]
+                    .query(&query.inflated(reach + ins.radius), &mut self.s.triangles);
+                ins.report.nearest = nearest_point(&self.s, surface, &pose, &state.x)
+                    .filter(|n| (n.point - pose.tip).norm() <= reach);
             }
             ins.report.moved_vertices = self.s.moved.len() as u32;
             self.hold_and_release(k, ins, state, imposed);

@@ -13,10 +13,10 @@
 //! [`GRAZING`] the triangle's own face normal is used if it faces the instrument
 //! better, and if neither does the triangle is left to the push-out of §2.6.
 
-use nalgebra::{Point3, Unit, Vector3};
+use nalgebra::{Point3, Unit};
 
 use super::closest::{closest_point_triangle, interpolated_normal, ray_triangle};
-use super::instrument::TipContact;
+use super::instrument::{NearestSurface, TipContact};
 use super::pose::InstrumentPose;
 use super::stage::Scratch;
 use crate::engine::mesh::Surface;
@@ -102,7 +102,7 @@ pub(super) fn nearest_point(
     surface: &Surface,
     pose: &InstrumentPose,
     x: &[Point3<f64>],
-) -> Option<(Point3<f64>, Unit<Vector3<f64>>)> {
+) -> Option<NearestSurface> {
     let mut best: Option<(f64, Point3<f64>, u32, [f64; 3])> = None;
     for &t in &s.triangles {
         let tri = surface.triangles[t as usize];
@@ -114,5 +114,9 @@ pub(super) fn nearest_point(
     }
     let (_, point, t, bary) = best?;
     let normals = surface.triangles[t as usize].map(|v| surface.vertex_normal(v, x));
-    interpolated_normal(&bary, &normals).map(|n| (point, n))
+    interpolated_normal(&bary, &normals).map(|normal| NearestSurface {
+        point,
+        normal,
+        triangle: t,
+    })
 }

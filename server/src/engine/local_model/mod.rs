@@ -174,7 +174,8 @@ impl LocalModelStage {
         model.kind = self.kind;
         let (p, z, r) = (pose.tip, pose.axis, ins.radius);
         let tip_contact = tip_contact(ins, &pose.tip, &pose.axis);
-        let tip_normal = tip_contact.map(|(n, _)| n);
+        // Held vertices go to the tip plane only when the tip touches.
+        let tip_normal = tip_contact.filter(|t| t.touching).map(|t| t.normal);
         let shaft_normal = planes::shaft_normal(ins, surface, x);
         let (mut tip, mut shaft) = (Held::new(), Held::new());
         for (i, &v) in ins.held.iter().enumerate() {
@@ -193,10 +194,15 @@ impl LocalModelStage {
         }
         let calibration = &mut self.calibration[k];
         model.tip_plane = match tip_contact {
-            Some((n, triangle)) => {
-                // Just touching, nothing held yet: the material under the tip.
-                let material = match (tip.count, triangle) {
-                    (0, Some(t)) => self.material.triangle(surface.triangles[t as usize]),
+            Some(TipTouch {
+                normal: n,
+                triangle,
+                surface: q,
+                ..
+            }) => {
+                // Nothing held yet: the material under the tip.
+                let material = match tip.count {
+                    0 => self.material.triangle(surface.triangles[triangle as usize]),
                     _ => tip.material(),
                 };
                 let k_geo = stiffness::geometric_tip(r, material);
@@ -209,9 +215,16 @@ impl LocalModelStage {
                     }
                 };
                 model.young_modulus = Some(material.0);
+                // Holding tissue: out by the indentation. Holding nothing (touching
+                // or approaching): on the surface ahead, offset by the tip's radius,
+                // where the tip meets it — negative depth, no force, until it does.
+                let anchor = match (tip.count, q) {
+                    (0, Some(q)) => q + n.into_inner() * r,
+                    _ => p + n.into_inner() * depth,
+                };
                 Some(Plane {
                     normal: n,
-                    anchor: p + n.into_inner() * depth,
+                    anchor,
                     stiffness: lambda,
                 })
             }
@@ -255,25 +268,46 @@ impl LocalModelStage {
     }
 }
 
-/// The tip contact `(n_prox, triangle)`: where the axis met the surface this
-/// tick (the contact stage's §2.5), or else, while the tip holds the tissue still, the
-/// surface point nearest the tip when it lies ahead of the tip (`(P − q)·Z ≥ r/2`)
-/// and within `1.5 r` of it. A pressed tip keeps its triangle at `r` straight ahead
-/// (`r cos θ` ahead for an axis at θ from the normal, so up to 60°); a point beside
-/// the tip, level with it, is the shaft's. The 1.5 `r` margin is the one the shaft's
-/// neighbouring edges use.
-fn tip_contact(
-    ins: &Instrument,
-    tip: &Point3<f64>,
-    axis: &Unit<Vector3<f64>>,
-) -> Option<(Unit<Vector3<f64>>, Option<u32>)> {
+/// What lies ahead of the tip.
+#[derive(Clone, Copy, Debug)]
+struct TipTouch {
+    /// `n_prox` (eq. 7).
+    normal: Unit<Vector3<f64>>,
+    triangle: u32,
+    /// The surface point ahead, when the contact stage found it by proximity.
+    surface: Option<Point3<f64>>,
+    /// Whether the tip touches: held vertices near it are the tip plane's.
+    touching: bool,
+}
+
+/// The surface ahead of the tip: where the axis met the surface this tick (the
+/// contact stage's §2.5, touching), or else the surface point `q` nearest the tip
+/// within the approach reach, if it lies ahead, within 60° of `−Z`
+/// (`(P − q)·Z ≥ |P − q| / 2`). It touches within `1.5 r`: a pressed tip keeps its
+/// triangle at `r` ahead, and 1.5 r is the margin the shaft's neighbouring edges use.
+/// A point beside the tip, level with it, is the shaft's.
+///
+/// Sending the plane ahead before the tip touches is what lets a force loop render
+/// the onset of contact at haptic rate: without it, the first force would come one
+/// mechanics tick after the tip went in, and a hand would bounce off.
+fn tip_contact(ins: &Instrument, tip: &Point3<f64>, axis: &Unit<Vector3<f64>>) -> Option<TipTouch> {
     if let Some(t) = ins.report.tip {
-        return Some((t.n_prox, Some(t.triangle)));
+        return Some(TipTouch {
+            normal: t.n_prox,
+            triangle: t.triangle,
+            surface: None,
+            touching: true,
+        });
     }
-    let (q, n) = ins.report.nearest?;
-    let r = ins.radius;
-    let ahead = (tip - q).dot(axis);
-    ((q - tip).norm() <= 1.5 * r && ahead >= 0.5 * r).then_some((n, None))
+    let near = ins.report.nearest?;
+    let distance = (near.point - tip).norm();
+    let ahead = (tip - near.point).dot(axis);
+    (ahead >= 0.5 * distance).then_some(TipTouch {
+        normal: near.normal,
+        triangle: near.triangle,
+        surface: Some(near.point),
+        touching: distance <= 1.5 * ins.radius,
+    })
 }
 
 impl Held {

@@ -285,3 +285,30 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
         0.0
     );
 }
+
+#[test]
+fn the_plane_ahead_arrives_before_the_tip_touches() {
+    let mut sim = two_region_block(5000.0, 5000.0, ForceModelKind::Geometric);
+    // 1 cm above the top face (z = 0.05), coming down.
+    for z in [0.07, 0.065, 0.06] {
+        sim.set_pose(
+            0,
+            Some(InstrumentPose::new(Point3::new(0.05, 0.05, z), down())),
+        );
+        sim.tick();
+    }
+    let stage = sim.forces.as_ref().unwrap();
+    let model = stage.models[0];
+    let plane = model
+        .tip_plane
+        .expect("the face is within the approach reach");
+    assert!(plane.normal.z > 0.99);
+    // The tip meets the face when it is r = 5 mm above it: 5 mm to go.
+    let depth = (plane.anchor - model.tip).dot(&plane.normal);
+    assert!((depth + 0.005).abs() < 1e-9, "depth {depth}");
+    assert_eq!(stage.forces[0].force, Vector3::zeros());
+    // A force loop with this model feels the face as soon as the tip reaches it.
+    let lower = Point3::new(0.05, 0.05, 0.054);
+    let f = model.force(&lower, &down()).force;
+    assert!((f - Vector3::new(0.0, 0.0, plane.stiffness * 0.001)).norm() < 1e-9 * f.norm());
+}

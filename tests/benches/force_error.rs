@@ -1,0 +1,175 @@
+//! Error against run time for forces (issue: reaction forces and the force loop).
+//!
+//! The reference is the elastic model's reaction on the instrument computed at haptic
+//! rate: the same probe run by the server's engine at 1 kHz, the reaction `−Σ (K u)_i`
+//! over the held vertices at each millisecond. Against it, the force the client's loop
+//! renders at each 1 kHz tick when the mechanics runs at 15, 30, 60 and 120 Hz and the
+//! loop extrapolates from the local models, for both force models: RMS and max error,
+//! the largest change of rendered force between two haptic ticks, the largest jump a
+//! model switch would make without blending, and the server's CPU time per simulated
+//! second. Then the loop on its own thread: achieved rate and period jitter.
+//!
+//! `cargo bench -p laparo-tests --bench force_error`
+
+use std::time::{Duration, Instant};
+
+use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
+use laparo_proto::force::{LocalModel, Plane};
+use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::scene::{ForceModelKind, Scene, Simulation};
+use laparo_tests::coupled::Coupled;
+use laparo_tests::gestures::{PROBE_SECONDS, Probe};
+use nalgebra::{Point3, Unit, Vector3};
+
+const HAPTIC_HZ: f64 = 1000.0;
+const DEPTH: f64 = 0.008;
+const SLIDE: f64 = 0.02;
+const REPEATS: usize = 5;
+
+fn settled(rate_hz: f64, kind: ForceModelKind) -> Simulation {
+    let mut scene = Scene::default_scene();
+    scene.mechanics.rate_hz = rate_hz;
+    scene.force_model.kind = kind;
+    let mut sim = scene.build().expect("the default scene builds");
+    for _ in 0..rate_hz.round() as usize {
+        sim.tick();
+    }
+    sim
+}
+
+fn haptic_ticks() -> usize {
+    (PROBE_SECONDS * HAPTIC_HZ).round() as usize
+}
+
+/// The reaction at each haptic tick from a run of the engine at haptic rate.
+fn reference(probe: &Probe) -> Vec<Vector3<f64>> {
+    let mut sim = settled(HAPTIC_HZ, ForceModelKind::Geometric);
+    (0..haptic_ticks())
+        .map(|j| {
+            let (tip, axis) = probe.pose(j as f64 / HAPTIC_HZ);
+            sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
+            sim.tick();
+            sim.instruments[0].report.reaction
+        })
+        .collect()
+}
+
+struct Row {
+    rms: f64,
+    max: f64,
+    max_step: f64,
+    max_switch_jump: f64,
+    server_cpu: f64,
+}
+
+fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f64>]) -> Row {
+    let mut cpu = Vec::new();
+    let mut row = None;
+    for _ in 0..REPEATS {
+        let sim = settled(rate_hz, kind);
+        let device = ScriptedDevice::new(probe.trajectory(), 1e3, haptic_ticks());
+        let mut c = Coupled::new(sim, device, HAPTIC_HZ);
+        for _ in 0..haptic_ticks() {
+            c.step();
+        }
+        cpu.push(c.server_seconds / PROBE_SECONDS);
+        let (mut sum, mut max) = (0.0, 0.0f64);
+        for (r, f) in c.haptics.device().recorded().zip(truth) {
+            let e = (r.force.force - f).norm();
+            sum += e * e;
+            max = max.max(e);
+        }
+        row = Some(Row {
+            rms: (sum / truth.len() as f64).sqrt(),
+            max,
+            max_step: c.haptics.stats().max_force_step,
+            max_switch_jump: c.max_switch_jump,
+            server_cpu: 0.0,
+        });
+    }
+    cpu.sort_by(f64::total_cmp);
+    let mut row = row.expect("at least one repeat");
+    row.server_cpu = cpu[cpu.len() / 2];
+    row
+}
+
+fn loop_on_its_thread() {
+    let plane = Plane {
+        normal: Vector3::z_axis(),
+        anchor: Point3::new(0.0, 0.0, 0.01),
+        stiffness: 100.0,
+    };
+    let axis: Unit<Vector3<f64>> = Vector3::z_axis();
+    let device = ScriptedDevice::fixed(Point3::origin(), axis, 10.0, 1);
+    let config = ForceLoopConfig::new(Point3::new(0.0, 0.0, 0.2));
+    let (haptics, mut inbox, _outbox) = ForceLoop::new(config, device).expect("valid");
+    let handle = haptics.spawn();
+    let start = Instant::now();
+    let mut tick = 0;
+    while start.elapsed() < Duration::from_secs(3) {
+        tick += 1;
+        inbox.write(LocalModel {
+            tip_plane: Some(plane),
+            ..LocalModel::free(tick, tick as f64 / 60.0, Point3::origin(), axis)
+        });
+        std::thread::sleep(Duration::from_micros(16_667));
+    }
+    let (_, s) = handle.stop();
+    println!(
+        "\nForce loop on its thread, 1 kHz nominal, 3 s, a model every 16.7 ms (std::thread::sleep to absolute deadlines, no real-time priority)"
+    );
+    println!(
+        "| ticks | achieved rate (Hz) | jitter p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | missed deadlines | max model age (ms) | models received |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {} |",
+        s.ticks,
+        s.rate_hz,
+        s.jitter.p50 * 1e6,
+        s.jitter.p99 * 1e6,
+        s.jitter.p999 * 1e6,
+        s.jitter.max * 1e6,
+        s.missed_deadlines,
+        s.max_model_age_s * 1e3,
+        s.models_received
+    );
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--list") {
+        return;
+    }
+    let probe = Probe::on_front(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
+    let truth = reference(&probe);
+    let peak = truth.iter().map(|f| f.norm()).fold(0.0, f64::max);
+    let rms_truth =
+        (truth.iter().map(|f| f.norm_squared()).sum::<f64>() / truth.len() as f64).sqrt();
+    println!(
+        "Probe of the default liver: {} mm past the surface, {} mm slide, axis through the trocar, {} s; reference reaction at 1 kHz: peak {:.3} N, RMS {:.3} N",
+        DEPTH * 1e3,
+        SLIDE * 1e3,
+        PROBE_SECONDS,
+        peak,
+        rms_truth
+    );
+    println!(
+        "| mechanics (Hz) | force model | RMS error (N) | RMS error / RMS force | max error (N) | largest step per haptic tick (N) | largest switch jump without blending (N) | server CPU s per simulated s (median of {REPEATS}) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for rate in [15.0, 30.0, 60.0, 120.0] {
+        for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
+            let r = coupled(&probe, rate, kind, &truth);
+            println!(
+                "| {rate} | {kind:?} | {:.4} | {:.3} | {:.4} | {:.4} | {:.4} | {:.5} |",
+                r.rms,
+                r.rms / rms_truth,
+                r.max,
+                r.max_step,
+                r.max_switch_jump,
+                r.server_cpu
+            );
+        }
+    }
+    loop_on_its_thread();
+}

@@ -1,0 +1,210 @@
+//! The force loop coupled to the server's engine in simulated time: bounded force
+//! change per haptic tick across many model updates, and the closed loop of a
+//! simulated hand, the device and stiff tissue.
+
+use laparo_client::haptics::blend::SMOOTHSTEP_MAX_SLOPE;
+use laparo_client::haptics::{HandDevice, HandParams, ScriptedDevice};
+use laparo_server::engine::scene::{ForceModelKind, Scene, Simulation};
+use laparo_tests::coupled::Coupled;
+use laparo_tests::gestures::{PROBE_SECONDS, Probe};
+
+const HAPTIC_HZ: f64 = 1000.0;
+
+/// The default scene at `rate_hz` with Young's modulus `e`, settled for 1 s.
+fn settled(e: f64, rate_hz: f64, kind: ForceModelKind) -> Simulation {
+    let mut scene = Scene::default_scene();
+    scene.material.young_modulus = e;
+    scene.mechanics.rate_hz = rate_hz;
+    scene.force_model.kind = kind;
+    let mut sim = scene.build().unwrap();
+    for _ in 0..rate_hz.round() as usize {
+        sim.tick();
+    }
+    sim
+}
+
+/// Probing for 4 s — press, hold, slide, hold, withdraw, about 240 model updates at
+/// 60 Hz — the force rendered changes per haptic tick by no more than the blend
+/// allows.
+///
+/// Bound. The loop renders `(1 − w)(F_prev(x) + Δ) + w F_cur(x)` with
+/// `w = smoothstep((t − t_a)/τ)`. Between two ticks, `w` grows by at most
+/// `1.5 dt/τ` (the smoothstep's largest slope), multiplying
+/// `|F_cur(x) − F_prev(x) − Δ|`, which is the switch jump `D` at the arrival and
+/// changes by at most `2 λ_max |Δx|` while the device moves over the transition; and
+/// each plane force changes by at most `λ_max |Δx|` per tick. With `v_max` the
+/// largest device speed: `1.5 (dt/τ)(D_max + 2 λ_max v_max τ) + λ_max v_max dt`.
+/// `D_max` and `λ_max` are measured by the harness; the bound is asserted with a
+/// 1e-9 N allowance for rounding.
+#[test]
+fn force_change_per_haptic_tick_is_bounded_while_probing() {
+    for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
+        let sim = settled(4500.0, 60.0, kind);
+        let probe = Probe::on_front(&sim, 0.008, 0.02);
+        let ticks = (PROBE_SECONDS * HAPTIC_HZ) as usize;
+        let device = ScriptedDevice::new(probe.trajectory(), 1e3, 1);
+        let mut c = Coupled::new(sim, device, HAPTIC_HZ);
+        let mut updates = 0;
+        for _ in 0..ticks {
+            updates += usize::from(c.step());
+        }
+        let dt = 1.0 / HAPTIC_HZ;
+        let tau = c.haptics.config().transition_s;
+        let v_max = (1..ticks)
+            .map(|j| {
+                let t = j as f64 * dt;
+                (probe.tip(t) - probe.tip(t - dt)).norm() / dt
+            })
+            .fold(0.0, f64::max);
+        let lambda = c.max_stiffness;
+        let bound =
+            SMOOTHSTEP_MAX_SLOPE * (dt / tau) * (c.max_switch_jump + 2.0 * lambda * v_max * tau)
+                + lambda * v_max * dt;
+        let stats = c.haptics.stats();
+        assert!(updates >= 239, "{updates} model updates");
+        assert!(stats.models_received >= 239);
+        assert!(
+            c.max_switch_jump > 0.0 && stats.max_force_step > 0.0,
+            "{kind:?}: the probe feels force"
+        );
+        assert!(
+            stats.max_force_step <= bound + 1e-9,
+            "{kind:?}: step {} N over the bound {bound} N (jump {} N, λ {lambda} N/m, v {v_max} m/s)",
+            stats.max_force_step,
+            c.max_switch_jump
+        );
+        // And blending does what it is for: the largest step is a fraction of the
+        // largest jump a switch would make without it.
+        assert!(stats.max_force_step < 0.5 * c.max_switch_jump, "{kind:?}");
+    }
+}
+
+/// What a closed-loop run of the hand on the liver saw.
+struct HandRun {
+    /// Hand energy (its scheme's discrete energy), J, at each haptic tick.
+    energy: Vec<f64>,
+    /// The hand's kinetic energy, J, and the work the rendered force did on it, J.
+    kinetic: Vec<f64>,
+    work: Vec<f64>,
+    /// Rendered force magnitude at each tick, N.
+    force: Vec<f64>,
+    clamped_ticks: u64,
+    non_finite_ticks: u64,
+    max_force: f64,
+}
+
+/// A hand pulls the instrument from 1 cm in front of the liver (modulus `e`) to
+/// `depth` past its surface over 1 s, then holds the target for 2 s.
+fn hand_on_liver(e: f64, kind: ForceModelKind, max_force: f64, depth: f64) -> HandRun {
+    let sim = settled(e, 60.0, kind);
+    let probe = Probe::on_front(&sim, depth, 0.0);
+    let params = HandParams {
+        max_force,
+        ..HandParams::default()
+    };
+    let target = move |t: f64| probe.pose(0.25 + t.min(1.0));
+    let hand = HandDevice::new(params, probe.trocar, probe.start, Box::new(target));
+    let mut c = Coupled::new(sim, hand, HAPTIC_HZ);
+    let (mut energy, mut force, mut kinetic, mut work) = (vec![], vec![], vec![], vec![]);
+    for _ in 0..3000 {
+        c.step();
+        let hand = c.haptics.device();
+        energy.push(hand.discrete_energy());
+        kinetic.push(hand.kinetic_energy());
+        work.push(hand.force_work());
+        force.push(c.haptics.rendered().force.norm());
+    }
+    let stats = c.haptics.stats();
+    HandRun {
+        energy,
+        kinetic,
+        work,
+        force,
+        clamped_ticks: stats.clamped_ticks,
+        non_finite_ticks: stats.non_finite_ticks,
+        max_force,
+    }
+}
+
+/// Largest value over haptic ticks `[a, b)`.
+fn max_over(v: &[f64], a: usize, b: usize) -> f64 {
+    v[a..b].iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn min_over(v: &[f64], a: usize, b: usize) -> f64 {
+    v[a..b].iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+/// No growing oscillation: while the target holds still (the last 2 s), the hand's
+/// energy swings less in each half second than in the one before (or by less than
+/// 1 µJ), and its motion dies out: its kinetic energy in the last half second is
+/// below a thousandth of its peak in the first, or below 1 nJ. A loop that put
+/// energy into the hand — a sampled wall too stiff for its rate, or a contact felt a
+/// mechanics tick late — keeps it bouncing.
+fn assert_passive(run: &HandRun, what: &str) {
+    let e = &run.energy;
+    assert!(e.iter().all(|v| v.is_finite()), "{what}");
+    let swing = |a| max_over(e, a, a + 500) - min_over(e, a, a + 500);
+    for a in [1500, 2000, 2500] {
+        assert!(
+            swing(a) <= swing(a - 500).max(1e-6),
+            "{what}: the energy swings {} J after swinging {} J",
+            swing(a),
+            swing(a - 500)
+        );
+    }
+    let (early, late) = (
+        max_over(&run.kinetic, 1000, 1500),
+        max_over(&run.kinetic, 2500, 3000),
+    );
+    assert!(
+        late <= (1e-3 * early).max(1e-9),
+        "{what}: kinetic energy {late} J late after {early} J"
+    );
+    // The work the rendered force does on the hand over the last second: none to
+    // speak of once it rests on the tissue.
+    assert!((run.work[2999] - run.work[1999]).abs() <= 1e-6, "{what}");
+    assert_eq!(run.non_finite_ticks, 0, "{what}");
+}
+
+#[test]
+fn the_hand_on_stiff_tissue_does_not_oscillate() {
+    for e in [1e6, 1e7] {
+        for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
+            let run = hand_on_liver(e, kind, 10.0, 0.005);
+            let what = format!("E {e} Pa, {kind:?}");
+            assert_passive(&run, &what);
+            // The hand presses on the tissue (200 N/m toward a target 5 mm past the
+            // surface) and the tissue holds it: about 1 N, below the 10 N limit.
+            let f = run.force[2999];
+            assert!(f > 0.3 && f < 10.0, "{what}: {f} N");
+            assert_eq!(run.clamped_ticks, 0, "{what}");
+        }
+    }
+}
+
+#[test]
+fn the_device_limit_clamps_cleanly() {
+    // A 0.5 N device on 10 MPa tissue: the hand pushes harder than the device can
+    // render, so the force sits at the limit, never above it, with no chatter.
+    let run = hand_on_liver(1e7, ForceModelKind::Geometric, 0.5, 0.005);
+    assert_passive(&run, "clamped");
+    assert!(
+        run.clamped_ticks > 500,
+        "clamped {} ticks",
+        run.clamped_ticks
+    );
+    assert!(
+        run.force
+            .iter()
+            .all(|&f| f <= run.max_force * (1.0 + 1e-12))
+    );
+    // Held at the limit through the last second, to rounding.
+    assert!(
+        run.force[2000..]
+            .iter()
+            .all(|&f| (f - run.max_force).abs() <= 1e-12),
+        "{:?}",
+        &run.force[2000..2010]
+    );
+}
