@@ -4,3 +4,5 @@
 pub mod engine;
 pub mod export;
 pub mod headless;
+pub mod service;
+pub mod session;

@@ -1,7 +1,7 @@
 //! `laparo-server`: the laparo training server.
 //!
-//! `laparo-server run` steps a scene headless (no network) and can export the result
-//! for ParaView. Serving the gRPC contract arrives with the session and service work.
+//! `laparo-server` (no subcommand) serves the gRPC contract; `laparo-server run` steps
+//! a scene headless (no network) and can export the result for ParaView.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -22,7 +22,106 @@ use laparo_server::headless::trajectory::Trajectory;
 )]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    #[command(flatten)]
+    serve: ServeArgs,
+}
+
+/// Serving (the default, without a subcommand).
+#[derive(Args, Debug)]
+struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1:50051")]
+    listen: std::net::SocketAddr,
+    /// Directory of scene files (.toml) offered besides the embedded default.
+    #[arg(long, value_name = "DIR")]
+    scene_dir: Option<PathBuf>,
+    /// Bearer tokens and their roles (TOML, see the README); without it every caller
+    /// is an instructor.
+    #[arg(long, value_name = "FILE.toml")]
+    tokens: Option<PathBuf>,
+    /// TLS certificate (PEM).
+    #[arg(long, value_name = "CERT.pem", requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// TLS private key (PEM).
+    #[arg(long, value_name = "KEY.pem", requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// Close a session after this many seconds with nobody connected (0: never).
+    #[arg(long, default_value_t = 300.0, value_parser = non_negative_seconds)]
+    idle_timeout: f64,
+    /// Poses per second per instrument a station may send.
+    #[arg(long, default_value_t = 2000.0, value_parser = positive_seconds)]
+    max_pose_rate: f64,
+    /// Listen on a non-loopback address without TLS and tokens.
+    #[arg(long)]
+    insecure: bool,
+}
+
+fn non_negative_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a duration ≥ 0 seconds"))
+    }
+}
+
+/// Serves until SIGINT or SIGTERM.
+fn serve(args: ServeArgs) -> Result<(), String> {
+    use laparo_server::service::{PoseLimits, ServeConfig, TlsFiles, Tokens, serve};
+    let tokens = args.tokens.as_deref().map(Tokens::load).transpose()?;
+    let config = ServeConfig {
+        scene_dir: args.scene_dir,
+        tokens,
+        tls: args
+            .tls_cert
+            .zip(args.tls_key)
+            .map(|(cert, key)| TlsFiles { cert, key }),
+        idle_timeout: (args.idle_timeout > 0.0)
+            .then(|| std::time::Duration::from_secs_f64(args.idle_timeout)),
+        pose_limits: PoseLimits {
+            rate_hz: args.max_pose_rate,
+            ..PoseLimits::default()
+        },
+        insecure: args.insecure,
+    };
+    let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
+    runtime.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(args.listen)
+            .await
+            .map_err(|e| format!("cannot listen on {}: {e}", args.listen))?;
+        eprintln!(
+            "laparo-server: serving laparo.v1 on {}",
+            listener.local_addr().map_err(|e| e.to_string())?
+        );
+        serve(config, listener, shutdown_signal())
+            .await
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// SIGINT (Ctrl-C) or SIGTERM.
+async fn shutdown_signal() {
+    let interrupt = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = interrupt => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = interrupt.await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = interrupt.await;
+    }
 }
 
 #[derive(Subcommand, Debug)]
@@ -68,7 +167,8 @@ fn main() -> ExitCode {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run(args) => run(args),
+        Some(Command::Run(args)) => run(args),
+        None => serve(cli.serve),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

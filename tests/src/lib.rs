@@ -8,3 +8,4 @@
 
 pub mod coupled;
 pub mod gestures;
+pub mod server;

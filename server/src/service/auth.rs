@@ -1,0 +1,179 @@
+//! Bearer tokens and roles.
+//!
+//! A tokens file (TOML) lists who may do what:
+//!
+//! ```toml
+//! [[tokens]]
+//! token = "s3cret-instructor"
+//! role = "instructor"          # observe any session, create and close sessions
+//! name = "Dr. Example"
+//!
+//! [[tokens]]
+//! token = "s3cret-station-1"
+//! role = "trainee"             # join as a station, claim only its instruments
+//! instruments = ["left"]       # absent: any instrument
+//! ```
+//!
+//! Every call carries `authorization: Bearer <token>`; an unknown or missing token is
+//! `UNAUTHENTICATED`, a role without the right is `PERMISSION_DENIED`. Without a
+//! tokens file (a loopback server for one person) every caller is an instructor.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use serde::Deserialize;
+use tonic::{Request, Status};
+
+/// What a caller may do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Role {
+    Trainee,
+    Instructor,
+}
+
+/// The caller of a request, as its token says.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Caller {
+    pub name: String,
+    pub role: Role,
+    /// Instruments a trainee may claim; `None`: any.
+    pub instruments: Option<Vec<String>>,
+}
+
+impl Caller {
+    /// Everyone, on a server without tokens.
+    pub fn open() -> Self {
+        Caller {
+            name: "anonymous".into(),
+            role: Role::Instructor,
+            instruments: None,
+        }
+    }
+
+    /// `PERMISSION_DENIED` unless the caller is an instructor.
+    pub fn require_instructor(&self, what: &str) -> Result<(), Status> {
+        match self.role {
+            Role::Instructor => Ok(()),
+            Role::Trainee => Err(Status::permission_denied(format!(
+                "{what} needs an instructor token; `{}` is a trainee",
+                self.name
+            ))),
+        }
+    }
+
+    /// Whether the caller may claim `instrument`.
+    pub fn may_claim(&self, instrument: &str) -> bool {
+        self.instruments
+            .as_ref()
+            .is_none_or(|list| list.iter().any(|i| i == instrument))
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TokensFile {
+    tokens: Vec<TokenEntry>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TokenEntry {
+    token: String,
+    role: Role,
+    #[serde(default)]
+    name: Option<String>,
+    #[serde(default)]
+    instruments: Option<Vec<String>>,
+}
+
+/// The tokens a server accepts.
+#[derive(Clone, Debug, Default)]
+pub struct Tokens {
+    by_token: HashMap<String, Caller>,
+}
+
+impl Tokens {
+    /// Reads a tokens file; errors name the file and what is wrong.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let file: TokensFile = toml::from_str(text).map_err(|e| e.to_string())?;
+        let mut by_token = HashMap::new();
+        for (k, t) in file.tokens.into_iter().enumerate() {
+            if t.token.len() < 8 {
+                return Err(format!("tokens[{k}].token: at least 8 characters"));
+            }
+            let caller = Caller {
+                name: t.name.unwrap_or_else(|| format!("tokens[{k}]")),
+                role: t.role,
+                instruments: t.instruments,
+            };
+            if by_token.insert(t.token, caller).is_some() {
+                return Err(format!("tokens[{k}].token: listed twice"));
+            }
+        }
+        Ok(Tokens { by_token })
+    }
+
+    /// A token for tests and tools.
+    pub fn insert(&mut self, token: &str, caller: Caller) {
+        self.by_token.insert(token.to_string(), caller);
+    }
+}
+
+/// The interceptor every service runs: puts the [`Caller`] in the request's
+/// extensions.
+#[derive(Clone)]
+pub struct Authenticate {
+    tokens: Option<Arc<Tokens>>,
+}
+
+impl Authenticate {
+    pub fn new(tokens: Option<Tokens>) -> Self {
+        Authenticate {
+            tokens: tokens.map(Arc::new),
+        }
+    }
+}
+
+impl tonic::service::Interceptor for Authenticate {
+    fn call(&mut self, mut request: Request<()>) -> Result<Request<()>, Status> {
+        let caller = match &self.tokens {
+            None => Caller::open(),
+            Some(tokens) => {
+                let header = request.metadata().get("authorization").ok_or_else(|| {
+                    Status::unauthenticated("missing `authorization: Bearer <token>`")
+                })?;
+                let token = header
+                    .to_str()
+                    .ok()
+                    .and_then(|h| h.strip_prefix("Bearer "))
+                    .ok_or_else(|| {
+                        Status::unauthenticated("authorization must be `Bearer <token>`")
+                    })?;
+                tokens
+                    .by_token
+                    .get(token.trim())
+                    .cloned()
+                    .ok_or_else(|| Status::unauthenticated("unknown token"))?
+            }
+        };
+        request.extensions_mut().insert(caller);
+        Ok(request)
+    }
+}
+
+/// The caller the interceptor found (every service is built with it; a request
+/// without one is refused rather than let through).
+pub fn caller<T>(request: &Request<T>) -> Result<Caller, Status> {
+    request
+        .extensions()
+        .get::<Caller>()
+        .cloned()
+        .ok_or_else(|| Status::internal("the request was not authenticated"))
+}

@@ -1,0 +1,188 @@
+//! The gRPC services of the contract, served by tonic: `Scenes`, `Sessions`,
+//! `Station.Join`, `Observe` and `Recordings`, with gRPC reflection (v1 and v1alpha)
+//! and the standard health service, so that grpcurl, grpcui and clients in other
+//! languages work without our code.
+//!
+//! Every service runs the [`auth::Authenticate`] interceptor. The server refuses to
+//! listen on a non-loopback address unless it has both TLS and tokens, or is told
+//! `insecure`. On shutdown every session closes: open streams end with
+//! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
+
+pub mod auth;
+pub mod observe;
+pub mod recordings;
+pub mod registry;
+pub mod scenes;
+pub mod sessions;
+pub mod station;
+pub mod stream;
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use laparo_proto::v1;
+use thiserror::Error;
+use tokio::net::TcpListener;
+use tokio_stream::wrappers::TcpListenerStream;
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::{Identity, Server, ServerTlsConfig};
+
+pub use auth::{Caller, Role, Tokens};
+pub use registry::{Registry, SceneCatalog};
+pub use station::PoseLimits;
+
+/// Largest message a client may send, bytes: poses and requests are well under a
+/// kilobyte; 64 KiB leaves room and refuses floods.
+pub const MAX_MESSAGE_BYTES: usize = 64 * 1024;
+/// Largest message the server sends, bytes: a liver-300k surface frame is ~1 MB.
+pub const MAX_SEND_BYTES: usize = 64 * 1024 * 1024;
+
+/// TLS certificate and key, PEM files.
+#[derive(Clone, Debug)]
+pub struct TlsFiles {
+    pub cert: PathBuf,
+    pub key: PathBuf,
+}
+
+/// How the server runs.
+#[derive(Clone, Debug, Default)]
+pub struct ServeConfig {
+    /// Scene files offered besides the embedded default.
+    pub scene_dir: Option<PathBuf>,
+    /// Bearer tokens; `None`: every caller is an instructor.
+    pub tokens: Option<Tokens>,
+    pub tls: Option<TlsFiles>,
+    /// Default idle timeout of sessions; `None`: never.
+    pub idle_timeout: Option<Duration>,
+    pub pose_limits: PoseLimits,
+    /// Listen on a non-loopback address without TLS and tokens anyway.
+    pub insecure: bool,
+}
+
+#[derive(Debug, Error)]
+pub enum ServeError {
+    #[error("scenes: {0}")]
+    Scenes(String),
+    #[error("TLS: {0}")]
+    Tls(String),
+    #[error(
+        "refusing to listen on {0} without TLS and tokens: give --tls-cert, --tls-key and --tokens, or --insecure"
+    )]
+    Insecure(SocketAddr),
+    #[error("listener: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("transport: {0}")]
+    Transport(#[from] tonic::transport::Error),
+}
+
+/// Serves the contract on `listener` until `shutdown` resolves, then closes every
+/// session and returns.
+pub async fn serve(
+    config: ServeConfig,
+    listener: TcpListener,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), ServeError> {
+    let addr = listener.local_addr()?;
+    let secured = config.tls.is_some() && config.tokens.is_some();
+    if !addr.ip().is_loopback() && !secured && !config.insecure {
+        return Err(ServeError::Insecure(addr));
+    }
+    let catalog = SceneCatalog::load(config.scene_dir.as_deref()).map_err(ServeError::Scenes)?;
+    let registry = Arc::new(Registry::new(catalog, config.idle_timeout));
+    let auth = auth::Authenticate::new(config.tokens.clone());
+
+    let reflection_v1 = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(laparo_proto::FILE_DESCRIPTOR_SET)
+        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        .build_v1()
+        .map_err(|e| ServeError::Scenes(format!("reflection: {e}")))?;
+    let reflection_v1alpha = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(laparo_proto::FILE_DESCRIPTOR_SET)
+        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        .build_v1alpha()
+        .map_err(|e| ServeError::Scenes(format!("reflection: {e}")))?;
+    let (health_reporter, health) = tonic_health::server::health_reporter();
+
+    macro_rules! service {
+        ($server:ty, $inner:expr) => {
+            InterceptedService::new(
+                <$server>::new($inner)
+                    .max_decoding_message_size(MAX_MESSAGE_BYTES)
+                    .max_encoding_message_size(MAX_SEND_BYTES),
+                auth.clone(),
+            )
+        };
+    }
+    let scenes = service!(
+        v1::scenes_server::ScenesServer<scenes::ScenesService>,
+        scenes::ScenesService {
+            registry: registry.clone()
+        }
+    );
+    let sessions = service!(
+        v1::sessions_server::SessionsServer<sessions::SessionsService>,
+        sessions::SessionsService {
+            registry: registry.clone()
+        }
+    );
+    let station = service!(
+        v1::station_server::StationServer<station::StationService>,
+        station::StationService {
+            registry: registry.clone(),
+            limits: config.pose_limits,
+        }
+    );
+    let observe = service!(
+        v1::observe_server::ObserveServer<observe::ObserveService>,
+        observe::ObserveService {
+            registry: registry.clone()
+        }
+    );
+    let recordings = service!(
+        v1::recordings_server::RecordingsServer<recordings::RecordingsService>,
+        recordings::RecordingsService
+    );
+    for name in [
+        "laparo.v1.Scenes",
+        "laparo.v1.Sessions",
+        "laparo.v1.Station",
+        "laparo.v1.Observe",
+        "laparo.v1.Recordings",
+    ] {
+        health_reporter
+            .set_service_status(name, tonic_health::ServingStatus::Serving)
+            .await;
+    }
+
+    let mut builder = Server::builder();
+    if let Some(tls) = &config.tls {
+        let read = |p: &PathBuf| {
+            std::fs::read(p).map_err(|e| ServeError::Tls(format!("{}: {e}", p.display())))
+        };
+        let identity = Identity::from_pem(read(&tls.cert)?, read(&tls.key)?);
+        builder = builder
+            .tls_config(ServerTlsConfig::new().identity(identity))
+            .map_err(|e| ServeError::Tls(e.to_string()))?;
+    }
+    tracing::info!(%addr, tls = config.tls.is_some(), tokens = config.tokens.is_some(), "serving laparo.v1");
+    let closing = registry.clone();
+    builder
+        .add_service(health)
+        .add_service(reflection_v1)
+        .add_service(reflection_v1alpha)
+        .add_service(scenes)
+        .add_service(sessions)
+        .add_service(station)
+        .add_service(observe)
+        .add_service(recordings)
+        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async move {
+            shutdown.await;
+            tracing::info!("shutting down: closing every session");
+            tokio::task::block_in_place(|| closing.close_all("server shutting down"));
+        })
+        .await?;
+    Ok(())
+}

@@ -1,0 +1,138 @@
+//! The scenes a server offers and the sessions it runs.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use tonic::Status;
+
+use crate::engine::scene::Scene;
+use crate::session::{Session, SessionConfig};
+
+/// The embedded default scene and the `.toml` files of a directory, by name.
+#[derive(Debug, Default)]
+pub struct SceneCatalog {
+    pub scenes: BTreeMap<String, Scene>,
+}
+
+impl SceneCatalog {
+    /// The default scene, and every `*.toml` in `dir` (each must parse; a broken file
+    /// is an error naming it, so a typo does not silently hide a scene).
+    pub fn load(dir: Option<&Path>) -> Result<Self, String> {
+        let mut scenes = BTreeMap::new();
+        let default = Scene::default_scene();
+        scenes.insert(default.name.clone(), default);
+        if let Some(dir) = dir {
+            let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            let mut files: Vec<PathBuf> = entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+                .collect();
+            files.sort();
+            for f in files {
+                let scene = Scene::load(&f).map_err(|e| e.to_string())?;
+                if scenes.contains_key(&scene.name) {
+                    return Err(format!(
+                        "{}: a scene named `{}` is already loaded",
+                        f.display(),
+                        scene.name
+                    ));
+                }
+                scenes.insert(scene.name.clone(), scene);
+            }
+        }
+        Ok(SceneCatalog { scenes })
+    }
+}
+
+/// Every session of the server.
+pub struct Registry {
+    pub catalog: SceneCatalog,
+    sessions: Mutex<BTreeMap<String, Arc<Session>>>,
+    next: AtomicU64,
+    /// Default idle timeout of new sessions.
+    pub idle_timeout: Option<Duration>,
+}
+
+impl Registry {
+    pub fn new(catalog: SceneCatalog, idle_timeout: Option<Duration>) -> Self {
+        Registry {
+            catalog,
+            sessions: Mutex::new(BTreeMap::new()),
+            next: AtomicU64::new(1),
+            idle_timeout,
+        }
+    }
+
+    fn map(&self) -> MutexGuard<'_, BTreeMap<String, Arc<Session>>> {
+        self.sessions.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Starts a session of scene `name`.
+    pub fn create(
+        &self,
+        name: &str,
+        idle_timeout: Option<Duration>,
+    ) -> Result<Arc<Session>, Status> {
+        let scene = self
+            .catalog
+            .scenes
+            .get(name)
+            .ok_or_else(|| Status::not_found(format!("no scene `{name}`")))?
+            .clone();
+        let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
+        let config = SessionConfig { idle_timeout };
+        // Building a scene reads its mesh and assembles the model: not on the
+        // async runtime's threads.
+        let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))
+            .map_err(|e| {
+                Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+            })?;
+        self.map().insert(id, session.clone());
+        tracing::info!(session = %session.id, scene = name, "session created");
+        Ok(session)
+    }
+
+    /// The open session `id`.
+    pub fn get(&self, id: &str) -> Result<Arc<Session>, Status> {
+        let mut map = self.map();
+        match map.get(id) {
+            Some(s) if !s.is_closed() => Ok(s.clone()),
+            Some(_) => {
+                map.remove(id);
+                Err(Status::not_found(format!("session `{id}` is closed")))
+            }
+            None => Err(Status::not_found(format!("no session `{id}`"))),
+        }
+    }
+
+    /// Open sessions, dropping the closed ones.
+    pub fn list(&self) -> Vec<Arc<Session>> {
+        let mut map = self.map();
+        map.retain(|_, s| !s.is_closed());
+        map.values().cloned().collect()
+    }
+
+    /// Closes and forgets session `id`.
+    pub fn close(&self, id: &str, reason: &str) -> Result<Arc<Session>, Status> {
+        let session = self
+            .map()
+            .remove(id)
+            .ok_or_else(|| Status::not_found(format!("no session `{id}`")))?;
+        session.close(reason);
+        Ok(session)
+    }
+
+    /// Closes every session (shutdown) and waits for their mechanics threads.
+    pub fn close_all(&self, reason: &str) {
+        let all: Vec<_> = std::mem::take(&mut *self.map()).into_values().collect();
+        for s in &all {
+            s.close(reason);
+        }
+        for s in &all {
+            s.join();
+        }
+    }
+}

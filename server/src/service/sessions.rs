@@ -1,0 +1,78 @@
+//! `Sessions`: create, inspect, list and close.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use laparo_proto::v1;
+use laparo_proto::v1::sessions_server::Sessions;
+use tonic::{Request, Response, Status};
+
+use super::auth::caller;
+use super::registry::Registry;
+
+pub struct SessionsService {
+    pub registry: Arc<Registry>,
+}
+
+#[tonic::async_trait]
+impl Sessions for SessionsService {
+    async fn create_session(
+        &self,
+        request: Request<v1::CreateSessionRequest>,
+    ) -> Result<Response<v1::SessionInfo>, Status> {
+        caller(&request)?.require_instructor("creating a session")?;
+        let r = request.get_ref();
+        let idle = match r.idle_timeout_s {
+            None => self.registry.idle_timeout,
+            Some(0.0) => None,
+            Some(t) if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
+            Some(t) => {
+                return Err(Status::invalid_argument(format!(
+                    "idle_timeout_s must be ≥ 0 and finite (got {t})"
+                )));
+            }
+        };
+        let scene = if r.scene.is_empty() {
+            "default"
+        } else {
+            &r.scene
+        };
+        let session = self.registry.create(scene, idle)?;
+        Ok(Response::new(session.info()))
+    }
+
+    async fn get_session(
+        &self,
+        request: Request<v1::GetSessionRequest>,
+    ) -> Result<Response<v1::SessionInfo>, Status> {
+        caller(&request)?;
+        let session = self.registry.get(&request.get_ref().session_id)?;
+        Ok(Response::new(session.info()))
+    }
+
+    async fn list_sessions(
+        &self,
+        request: Request<v1::ListSessionsRequest>,
+    ) -> Result<Response<v1::ListSessionsResponse>, Status> {
+        caller(&request)?;
+        let sessions = self.registry.list().iter().map(|s| s.info()).collect();
+        Ok(Response::new(v1::ListSessionsResponse { sessions }))
+    }
+
+    async fn close_session(
+        &self,
+        request: Request<v1::CloseSessionRequest>,
+    ) -> Result<Response<v1::CloseSessionResponse>, Status> {
+        caller(&request)?.require_instructor("closing a session")?;
+        let r = request.get_ref();
+        let reason = if r.reason.is_empty() {
+            "closed by an instructor"
+        } else {
+            &r.reason
+        };
+        let session = self.registry.close(&r.session_id, reason)?;
+        Ok(Response::new(v1::CloseSessionResponse {
+            session: Some(session.info()),
+        }))
+    }
+}

@@ -1,0 +1,344 @@
+//! `Station.Join`: a trainee station's bidirectional stream.
+//!
+//! The first message must be `open` (a `JoinRequest`), within [`OPEN_TIMEOUT`]; the
+//! server checks the session, the role and every instrument claimed, answers
+//! `Joined` with the scene, then streams frames, instrument states and events, while
+//! the station streams device poses. A bad pose is dropped and answered with a
+//! `StationError` on this stream (and an `INPUT_REJECTED` event for the others); the
+//! session, the other stations and the recording go on. More than
+//! [`ABUSE_LIMIT`] rejected messages within a second close the stream:
+//! `RESOURCE_EXHAUSTED` when most were over the pose rate, `INVALID_ARGUMENT`
+//! otherwise. Leaving, dropping the connection or the server ending the stream all
+//! release the station's instruments, which stay where it left them until a station
+//! claims them again.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use laparo_proto::v1;
+use laparo_proto::v1::ErrorCode;
+use laparo_proto::v1::station_message::Kind;
+use tokio::sync::{mpsc, watch};
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::{Request, Response, Status, Streaming};
+
+use super::auth::{Role, caller};
+use super::registry::Registry;
+use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
+use crate::session::{PoseIn, RateLimit, Rejection, Session, check_pose};
+
+/// How long a station has to send its opening message.
+pub const OPEN_TIMEOUT: Duration = Duration::from_secs(10);
+/// Rejected messages within one second that close the stream.
+pub const ABUSE_LIMIT: u32 = 100;
+/// `INPUT_REJECTED` events a station causes per second at most (the rest are
+/// counted in the next one's detail), so that one bad station cannot flood the
+/// others' streams.
+const REJECTION_EVENTS_PER_SECOND: u32 = 5;
+
+/// Limits on what stations send.
+#[derive(Clone, Copy, Debug)]
+pub struct PoseLimits {
+    /// Poses per second per instrument.
+    pub rate_hz: f64,
+    /// Poses that may arrive at once (a network burst).
+    pub burst: f64,
+}
+
+impl Default for PoseLimits {
+    /// 2 kHz: twice a 1 kHz haptic device's rate; a burst of 100.
+    fn default() -> Self {
+        PoseLimits {
+            rate_hz: 2000.0,
+            burst: 100.0,
+        }
+    }
+}
+
+pub struct StationService {
+    pub registry: Arc<Registry>,
+    pub limits: PoseLimits,
+}
+
+type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
+
+#[tonic::async_trait]
+impl v1::station_server::Station for StationService {
+    type JoinStream = ReceiverStream<Result<v1::ServerMessage, Status>>;
+
+    async fn join(
+        &self,
+        request: Request<Streaming<v1::StationMessage>>,
+    ) -> Result<Response<Self::JoinStream>, Status> {
+        let caller = caller(&request)?;
+        let mut inbound = request.into_inner();
+        let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
+            .await
+            .map_err(|_| Status::deadline_exceeded("no opening message within 10 s"))??
+            .ok_or_else(|| {
+                Status::invalid_argument("the stream ended before its opening message")
+            })?;
+        let Some(Kind::Open(open)) = first.kind else {
+            return Err(Status::invalid_argument(
+                "the first message of Join must be `open` (a JoinRequest)",
+            ));
+        };
+        let session = self.registry.get(&open.session_id)?;
+        let role = match v1::Role::try_from(open.role).unwrap_or(v1::Role::Unspecified) {
+            v1::Role::Instructor => {
+                caller.require_instructor("joining as an instructor station")?;
+                v1::Role::Instructor
+            }
+            _ => v1::Role::Trainee,
+        };
+        let mut claimed = Vec::with_capacity(open.instruments.len());
+        for name in &open.instruments {
+            let k = session.instrument_index(name).ok_or_else(|| {
+                Status::not_found(format!(
+                    "session `{}` has no instrument `{name}`",
+                    session.id
+                ))
+            })?;
+            if caller.role == Role::Trainee && !caller.may_claim(name) {
+                return Err(Status::permission_denied(format!(
+                    "`{}` may not claim instrument `{name}`",
+                    caller.name
+                )));
+            }
+            if claimed.contains(&k) {
+                return Err(Status::invalid_argument(format!(
+                    "instrument `{name}` claimed twice"
+                )));
+            }
+            claimed.push(k);
+        }
+        let rate = frame_rate(open.surface_frame_rate_hz, session.scene.mechanics.rate_hz)?;
+        let station = {
+            let mut roster = session.roster();
+            for &k in &claimed {
+                if let Some(holder) = roster.holders[k] {
+                    return Err(Status::already_exists(format!(
+                        "instrument `{}` is already claimed by station {holder}",
+                        session.scene.instruments[k].name
+                    )));
+                }
+            }
+            Session::add_station(
+                &mut roster,
+                role,
+                &open.client_name,
+                &claimed,
+                open.instruments.clone(),
+            )
+        };
+        session.publish(
+            v1::EventKind::StationJoined,
+            Some(station),
+            None,
+            format!("{} ({})", open.client_name, open.instruments.join(", ")),
+        );
+        let (tx, rx) = mpsc::channel(OUTBOUND);
+        let joined = v1::ServerMessage {
+            kind: Some(v1::server_message::Kind::Joined(v1::Joined {
+                station_id: station,
+                session_id: session.id.clone(),
+                scene: Some(session.description.clone()),
+                instruments: open.instruments.clone(),
+                surface_frame_rate_hz: rate,
+                tick: session.stats.tick.load(Ordering::Relaxed),
+            })),
+        };
+        let _ = tx.try_send(Ok(joined));
+        let (done_tx, done) = watch::channel(false);
+        let connected = session.connect();
+        tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
+        let limits = self.limits;
+        tokio::spawn(async move {
+            let _connected = connected;
+            receive(&session, station, &claimed, inbound, &tx, limits).await;
+            session.remove_station(station);
+            session.publish(
+                v1::EventKind::StationLeft,
+                Some(station),
+                None,
+                String::new(),
+            );
+            let _ = done_tx.send(true);
+        });
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+}
+
+/// Per claimed instrument: its index, rate limit and last accepted sequence.
+struct Claim {
+    index: usize,
+    limit: RateLimit,
+    last: Option<u64>,
+}
+
+/// Reads the station's messages until it leaves, drops, or is closed for abuse.
+async fn receive(
+    session: &Arc<Session>,
+    station: u64,
+    claimed: &[usize],
+    mut inbound: Streaming<v1::StationMessage>,
+    tx: &Out,
+    limits: PoseLimits,
+) {
+    let mut claims: Vec<Claim> = claimed
+        .iter()
+        .map(|&index| Claim {
+            index,
+            limit: RateLimit::new(limits.rate_hz, limits.burst),
+            last: None,
+        })
+        .collect();
+    let start = Instant::now();
+    let (mut window_start, mut rejected, mut rate_limited) = (0.0, 0u32, 0u32);
+    let (mut events_this_second, mut unreported) = (0u32, 0u64);
+    let mut closing = session.closing();
+    loop {
+        // A closing session stops reading too, so that the stream ends on both sides.
+        let next = tokio::select! {
+            m = inbound.message() => m,
+            _ = closing.wait_for(Option::is_some) => return,
+        };
+        let message = match next {
+            Ok(Some(m)) => m,
+            Ok(None) => return,
+            Err(status) => {
+                // A transport error or a message over the size limit: tell the
+                // station why, if it can still hear.
+                let _ = tx.try_send(Err(status));
+                return;
+            }
+        };
+        let now = start.elapsed().as_secs_f64();
+        let result = match message.kind {
+            Some(Kind::Pose(p)) => accept_pose(session, station, &mut claims, &p, now),
+            Some(Kind::Leave(_)) => return,
+            Some(Kind::Open(_)) => Err((
+                Rejection {
+                    code: ErrorCode::AlreadyJoined,
+                    message: "this stream has already joined".into(),
+                },
+                None,
+                None,
+            )),
+            None => Err((
+                Rejection {
+                    code: ErrorCode::InvalidMessage,
+                    message: "a message with nothing in it".into(),
+                },
+                None,
+                None,
+            )),
+        };
+        let Err((rejection, sequence, instrument)) = result else {
+            continue;
+        };
+        session.stats.poses_rejected.fetch_add(1, Ordering::Relaxed);
+        if now - window_start >= 1.0 {
+            (window_start, rejected, rate_limited, events_this_second) = (now, 0, 0, 0);
+        }
+        rejected += 1;
+        rate_limited += u32::from(rejection.code == ErrorCode::RateLimited);
+        let error = v1::StationError {
+            code: rejection.code as i32,
+            message: rejection.message.clone(),
+            sequence,
+            instrument: instrument.clone(),
+        };
+        if let Some(m) = v1::ServerMessage::wrap(Item::Error(error)) {
+            let _ = tx.try_send(Ok(m));
+        }
+        if events_this_second < REJECTION_EVENTS_PER_SECOND {
+            events_this_second += 1;
+            let detail = if unreported > 0 {
+                format!(
+                    "{} (and {unreported} more rejected before)",
+                    rejection.message
+                )
+            } else {
+                rejection.message.clone()
+            };
+            unreported = 0;
+            session.publish(
+                v1::EventKind::InputRejected,
+                Some(station),
+                instrument,
+                detail,
+            );
+        } else {
+            unreported += 1;
+        }
+        if rejected > ABUSE_LIMIT {
+            let status = if 2 * rate_limited > rejected {
+                Status::resource_exhausted(format!(
+                    "more than {ABUSE_LIMIT} messages rejected within a second, most over the pose-rate limit"
+                ))
+            } else {
+                Status::invalid_argument(format!(
+                    "more than {ABUSE_LIMIT} messages rejected within a second; last: {}",
+                    rejection.message
+                ))
+            };
+            let _ = tx.send(Err(status)).await;
+            return;
+        }
+    }
+}
+
+type Refusal = (Rejection, Option<u64>, Option<String>);
+
+/// Checks a pose and hands it to the mechanics thread.
+fn accept_pose(
+    session: &Session,
+    station: u64,
+    claims: &mut [Claim],
+    p: &v1::DevicePose,
+    now: f64,
+) -> Result<(), Refusal> {
+    let refuse = |code, message: String| {
+        Err((
+            Rejection { code, message },
+            Some(p.sequence),
+            Some(p.instrument.clone()),
+        ))
+    };
+    let Some(k) = session.instrument_index(&p.instrument) else {
+        return refuse(
+            ErrorCode::UnknownInstrument,
+            format!("no instrument `{}` in this session", p.instrument),
+        );
+    };
+    let Some(claim) = claims.iter_mut().find(|c| c.index == k) else {
+        return refuse(
+            ErrorCode::InstrumentNotHeld,
+            format!("this station does not hold `{}`", p.instrument),
+        );
+    };
+    if !claim.limit.admit(now) {
+        return refuse(
+            ErrorCode::RateLimited,
+            format!("poses of `{}` over the rate limit", p.instrument),
+        );
+    }
+    match check_pose(p, &session.workspace, claim.last) {
+        Ok(pose) => {
+            claim.last = Some(p.sequence);
+            session.submit_pose(
+                k,
+                PoseIn {
+                    pose,
+                    sequence: p.sequence,
+                    station,
+                },
+            );
+            session.stats.poses_accepted.fetch_add(1, Ordering::Relaxed);
+            Ok(())
+        }
+        Err(r) => Err((r, Some(p.sequence), Some(p.instrument.clone()))),
+    }
+}

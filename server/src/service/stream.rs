@@ -1,0 +1,155 @@
+//! What a station or observer stream sends: the session's frames at the rate the
+//! client asked for, its events, and the end of the session.
+
+use std::sync::Arc;
+
+use laparo_proto::v1;
+use tokio::sync::{broadcast, mpsc, watch};
+use tonic::Status;
+
+use crate::session::Session;
+
+/// One outgoing item, before it is wrapped in the stream's message type. Held only
+/// on its way into a message, so its size is that message's.
+#[allow(clippy::large_enum_variant)]
+pub enum Item {
+    Surface(v1::SurfaceFrame),
+    State(v1::InstrumentState),
+    Event(v1::Event),
+    Error(v1::StationError),
+}
+
+/// A stream's message type.
+pub trait Wrap: Send + 'static {
+    fn wrap(item: Item) -> Option<Self>
+    where
+        Self: Sized;
+}
+
+impl Wrap for v1::ServerMessage {
+    fn wrap(item: Item) -> Option<Self> {
+        use v1::server_message::Kind;
+        Some(v1::ServerMessage {
+            kind: Some(match item {
+                Item::Surface(f) => Kind::SurfaceFrame(f),
+                Item::State(s) => Kind::InstrumentState(s),
+                Item::Event(e) => Kind::Event(e),
+                Item::Error(e) => Kind::Error(e),
+            }),
+        })
+    }
+}
+
+impl Wrap for v1::ObserveMessage {
+    fn wrap(item: Item) -> Option<Self> {
+        use v1::observe_message::Kind;
+        Some(v1::ObserveMessage {
+            kind: Some(match item {
+                Item::Surface(f) => Kind::SurfaceFrame(f),
+                Item::State(s) => Kind::InstrumentState(s),
+                Item::Event(e) => Kind::Event(e),
+                // Observers send nothing, so nothing of theirs is rejected.
+                Item::Error(_) => return None,
+            }),
+        })
+    }
+}
+
+/// Messages a client may fall behind by before frames are skipped for it.
+pub const OUTBOUND: usize = 64;
+
+/// The frame rate a client gets: what it asked for, at most the mechanics rate.
+pub fn frame_rate(asked: Option<f64>, mechanics_hz: f64) -> Result<f64, Status> {
+    match asked {
+        None => Ok(mechanics_hz),
+        Some(r) if r.is_finite() && r > 0.0 => Ok(r.min(mechanics_hz)),
+        Some(r) => Err(Status::invalid_argument(format!(
+            "the frame rate must be finite and > 0 Hz (got {r})"
+        ))),
+    }
+}
+
+/// Sends the session's frames (at `rate_hz`), events, and its end, until the client
+/// goes, `done` fires, or the session closes (then the stream ends with
+/// `UNAVAILABLE` and the reason). Frames go with `try_send`: a client that does not
+/// keep up skips frames; the mechanics thread never waits for it.
+pub async fn pump<M: Wrap>(
+    session: Arc<Session>,
+    tx: mpsc::Sender<Result<M, Status>>,
+    rate_hz: f64,
+    mut done: watch::Receiver<bool>,
+) {
+    let mut frames = session.frames();
+    let mut events = session.events();
+    let mut closing = session.closing();
+    let period = 1.0 / rate_hz;
+    let mut next_time = f64::NEG_INFINITY;
+    let send = |item: Item| M::wrap(item).map(Ok);
+    let closed = closing.borrow_and_update().clone();
+    if let Some(reason) = closed {
+        let _ = tx
+            .send(Err(Status::unavailable(format!(
+                "session closed: {reason}"
+            ))))
+            .await;
+        return;
+    }
+    loop {
+        tokio::select! {
+            changed = frames.changed() => {
+                if changed.is_err() {
+                    break;
+                }
+                let frame = frames.borrow_and_update().clone();
+                // Half a tick of slack so a rate equal to the mechanics rate skips none.
+                if frame.sim_time + 0.5 / session.scene.mechanics.rate_hz < next_time {
+                    continue;
+                }
+                next_time = frame.sim_time.max(next_time + period);
+                let surface = v1::SurfaceFrame {
+                    tick: frame.tick,
+                    sim_time_s: frame.sim_time,
+                    positions: frame.surface.clone(),
+                };
+                let Some(m) = send(Item::Surface(surface)) else { continue };
+                if tx.try_send(m).is_err() {
+                    if tx.is_closed() { break; }
+                    continue;
+                }
+                for state in &frame.instruments {
+                    if let Some(m) = send(Item::State(state.clone())) {
+                        let _ = tx.try_send(m);
+                    }
+                }
+            }
+            event = events.recv() => match event {
+                Ok(e) => {
+                    if let Some(m) = send(Item::Event(e))
+                        && tx.send(m).await.is_err()
+                    {
+                        break;
+                    }
+                }
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    let error = v1::StationError {
+                        code: v1::ErrorCode::Unspecified as i32,
+                        message: format!("{n} events skipped: this stream fell behind"),
+                        sequence: None,
+                        instrument: None,
+                    };
+                    if let Some(m) = send(Item::Error(error)) {
+                        let _ = tx.try_send(m);
+                    }
+                }
+                Err(broadcast::error::RecvError::Closed) => break,
+            },
+            _ = closing.changed() => {
+                let reason: String = closing.borrow().clone().unwrap_or_default();
+                let _ = tx.send(Err(Status::unavailable(format!("session closed: {reason}")))).await;
+                break;
+            }
+            _ = done.changed() => break,
+            _ = tx.closed() => break,
+        }
+    }
+}

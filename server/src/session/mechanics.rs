@@ -1,0 +1,130 @@
+//! The mechanics thread of a session: a plain OS thread ticking at the scene's rate.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Weak};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use laparo_proto::v1;
+use tokio::sync::{broadcast, watch};
+
+use super::describe::{contact_state, instrument_state, surface_positions};
+use super::{Frame, PoseIn, Session, SessionStats};
+use crate::engine::scene::Simulation;
+
+/// What the thread owns.
+pub(super) struct Mechanics {
+    pub sim: Simulation,
+    pub inputs: Vec<triple_buffer::Output<Option<PoseIn>>>,
+    pub frames: watch::Sender<Arc<Frame>>,
+    pub events: broadcast::Sender<v1::Event>,
+    pub stats: Arc<SessionStats>,
+    pub stop: Arc<AtomicBool>,
+    pub session: Weak<Session>,
+}
+
+pub(super) fn spawn(m: Mechanics) -> std::io::Result<JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("mechanics".into())
+        .spawn(move || m.run())
+}
+
+impl Mechanics {
+    /// Ticks at the scene's rate until stopped: deadlines are `start + k·dt`; a tick
+    /// that starts more than a period late counts as missed, and the schedule
+    /// resynchronises instead of bursting to catch up.
+    fn run(mut self) {
+        let dt = Duration::from_secs_f64(self.sim.dt);
+        let n = self.sim.instruments.len();
+        let mut holders: Vec<Option<(u64, u64)>> = vec![None; n];
+        let mut contact = vec![v1::ContactState::None; n];
+        let mut tick_ms: Vec<f64> = Vec::with_capacity(256);
+        let mut idle_since: Option<Instant> = None;
+        let mut next = Instant::now();
+        while !self.stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now < next {
+                std::thread::sleep(next - now);
+            } else if now - next > dt {
+                let late = ((now - next).as_secs_f64() / self.sim.dt) as u64;
+                self.stats
+                    .missed_deadlines
+                    .fetch_add(late, Ordering::Relaxed);
+                next = now;
+            }
+            next += dt;
+            let started = Instant::now();
+            for (k, input) in self.inputs.iter_mut().enumerate() {
+                if let Some(p) = *input.read() {
+                    self.sim.set_pose(k, Some(p.pose));
+                    holders[k] = Some((p.station, p.sequence));
+                }
+            }
+            self.sim.tick();
+            let frame = Frame {
+                tick: self.sim.tick,
+                sim_time: self.sim.time,
+                surface: surface_positions(&self.sim),
+                instruments: (0..n)
+                    .map(|k| {
+                        let h = holders[k];
+                        instrument_state(&self.sim, k, h.map(|h| h.0), h.map(|h| h.1))
+                    })
+                    .collect(),
+            };
+            for k in 0..n {
+                let now = contact_state(&self.sim, k);
+                let (was_in, is_in) = (
+                    contact[k] != v1::ContactState::None,
+                    now != v1::ContactState::None,
+                );
+                if was_in != is_in {
+                    let kind = if is_in {
+                        v1::EventKind::ContactBegan
+                    } else {
+                        v1::EventKind::ContactEnded
+                    };
+                    let _ = self.events.send(v1::Event {
+                        tick: self.sim.tick,
+                        sim_time_s: self.sim.time,
+                        kind: kind as i32,
+                        station_id: holders[k].map(|h| h.0),
+                        instrument: Some(self.sim.instruments[k].name.clone()),
+                        detail: format!("{:?}", now),
+                    });
+                }
+                contact[k] = now;
+            }
+            self.frames.send_replace(Arc::new(frame));
+            self.stats.tick.store(self.sim.tick, Ordering::Relaxed);
+            self.stats
+                .sim_time_bits
+                .store(self.sim.time.to_bits(), Ordering::Relaxed);
+            tick_ms.push(started.elapsed().as_secs_f64() * 1e3);
+            if tick_ms.len() as f64 * self.sim.dt >= 1.0 {
+                tick_ms.sort_by(f64::total_cmp);
+                let at = |q: f64| tick_ms[((tick_ms.len() - 1) as f64 * q).round() as usize];
+                self.stats
+                    .tick_p50_bits
+                    .store(at(0.5).to_bits(), Ordering::Relaxed);
+                self.stats
+                    .tick_p99_bits
+                    .store(at(0.99).to_bits(), Ordering::Relaxed);
+                tick_ms.clear();
+                // Once a second: close when nobody has been connected for the idle
+                // timeout.
+                let Some(session) = self.session.upgrade() else {
+                    break;
+                };
+                if session.stats.connected.load(Ordering::Relaxed) == 0 {
+                    let since = *idle_since.get_or_insert(started);
+                    if session.idle_timeout.is_some_and(|t| started - since >= t) {
+                        session.close("idle timeout");
+                    }
+                } else {
+                    idle_since = None;
+                }
+            }
+        }
+    }
+}

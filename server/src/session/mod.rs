@@ -1,0 +1,329 @@
+//! One running scene: its fixed-rate mechanics thread, the poses stations send it, the
+//! frames and events it publishes.
+//!
+//! The mechanics thread ([`mechanics`]) owns the [`Simulation`]; nothing else touches
+//! it. Poses reach it through one latest-value slot per instrument (a triple buffer:
+//! the thread reads the newest without waiting, a station overwrites without
+//! waiting). Each tick it publishes a [`Frame`] on a `watch` channel — every stream
+//! sends the newest it has not sent, so a slow client skips frames and never delays
+//! the tick — and events on a `broadcast` channel. The roster (who holds which
+//! instrument) is behind a mutex only the network side takes.
+
+pub mod describe;
+pub mod input;
+mod mechanics;
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, SystemTime};
+
+use laparo_proto::v1;
+use tokio::sync::{broadcast, watch};
+
+use crate::engine::scene::{Scene, SceneError};
+pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
+
+/// The state of the liver and the instruments after one tick.
+#[derive(Debug, Default)]
+pub struct Frame {
+    pub tick: u64,
+    pub sim_time: f64,
+    /// Surface positions, packed f32 triples in the rest surface's order.
+    pub surface: Vec<f32>,
+    /// Every instrument's state, in scene order.
+    pub instruments: Vec<v1::InstrumentState>,
+}
+
+/// How a session runs.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// Close after this long with no station and no observer; `None`: never.
+    pub idle_timeout: Option<Duration>,
+}
+
+/// Counters the mechanics thread and the streams keep.
+#[derive(Debug, Default)]
+pub struct SessionStats {
+    pub tick: AtomicU64,
+    /// Simulated time, f64 bits.
+    pub sim_time_bits: AtomicU64,
+    pub missed_deadlines: AtomicU64,
+    /// Tick wall-time percentiles over the last second, ms, f64 bits.
+    pub tick_p50_bits: AtomicU64,
+    pub tick_p99_bits: AtomicU64,
+    pub poses_accepted: AtomicU64,
+    pub poses_rejected: AtomicU64,
+    /// Open station and observe streams.
+    pub connected: AtomicU64,
+}
+
+/// Who is in the session.
+#[derive(Debug, Default)]
+pub struct Roster {
+    pub stations: BTreeMap<u64, v1::StationInfo>,
+    /// Holder station of each instrument, in scene order.
+    pub holders: Vec<Option<u64>>,
+    pub observers: u32,
+    next_station: u64,
+}
+
+/// A running session.
+pub struct Session {
+    pub id: String,
+    pub scene: Scene,
+    pub created_at: SystemTime,
+    pub description: v1::SceneDescription,
+    pub workspace: Workspace,
+    pub idle_timeout: Option<Duration>,
+    pub stats: Arc<SessionStats>,
+    roster: Mutex<Roster>,
+    slots: Vec<Mutex<triple_buffer::Input<Option<PoseIn>>>>,
+    frames: watch::Receiver<Arc<Frame>>,
+    events: broadcast::Sender<v1::Event>,
+    /// `Some(reason)` once the session is closing.
+    closing: watch::Sender<Option<String>>,
+    stop: Arc<AtomicBool>,
+    thread: Mutex<Option<JoinHandle<()>>>,
+}
+
+/// Events a slow stream may fall behind by before it skips (and is told so).
+pub const EVENT_BACKLOG: usize = 1024;
+
+impl Session {
+    /// Builds the scene and starts its mechanics thread.
+    pub fn start(
+        id: String,
+        scene: Scene,
+        config: &SessionConfig,
+    ) -> Result<Arc<Self>, SceneError> {
+        let sim = scene.build()?;
+        let description = describe::description(&scene, &sim);
+        let (lo, hi) = sim.mesh.bounding_box();
+        let reach = sim.instruments.iter().map(|i| i.length).fold(0.0, f64::max) + 0.05;
+        let workspace = Workspace {
+            min: lo - nalgebra::Vector3::repeat(reach),
+            max: hi + nalgebra::Vector3::repeat(reach),
+        };
+        let n = sim.instruments.len();
+        let (inputs, outputs): (Vec<_>, Vec<_>) =
+            (0..n).map(|_| triple_buffer::triple_buffer(&None)).unzip();
+        let (frame_tx, frames) = watch::channel(Arc::new(Frame::default()));
+        let (events, _) = broadcast::channel(EVENT_BACKLOG);
+        let (closing, _) = watch::channel(None);
+        let stats = Arc::new(SessionStats::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let session = Arc::new(Session {
+            id,
+            created_at: SystemTime::now(),
+            description,
+            workspace,
+            idle_timeout: config.idle_timeout,
+            stats: stats.clone(),
+            roster: Mutex::new(Roster {
+                holders: vec![None; n],
+                ..Roster::default()
+            }),
+            slots: inputs.into_iter().map(Mutex::new).collect(),
+            frames,
+            events: events.clone(),
+            closing,
+            stop: stop.clone(),
+            thread: Mutex::new(None),
+            scene,
+        });
+        let weak = Arc::downgrade(&session);
+        let thread = mechanics::spawn(mechanics::Mechanics {
+            sim,
+            inputs: outputs,
+            frames: frame_tx,
+            events,
+            stats,
+            stop,
+            session: weak,
+        })
+        .map_err(|e| SceneError::Invalid {
+            scene: session.scene.source.clone(),
+            path: "mechanics".into(),
+            message: format!("cannot start the mechanics thread: {e}"),
+        })?;
+        *session.thread.lock().unwrap_or_else(|e| e.into_inner()) = Some(thread);
+        Ok(session)
+    }
+
+    /// The roster, for the network side.
+    pub fn roster(&self) -> MutexGuard<'_, Roster> {
+        self.roster.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The index of the instrument called `name`.
+    pub fn instrument_index(&self, name: &str) -> Option<usize> {
+        self.scene.instruments.iter().position(|i| i.name == name)
+    }
+
+    /// Adds a station holding `instruments` (indices, checked free by the caller
+    /// under the same roster lock).
+    pub fn add_station(
+        roster: &mut Roster,
+        role: v1::Role,
+        client_name: &str,
+        instruments: &[usize],
+        names: Vec<String>,
+    ) -> u64 {
+        roster.next_station += 1;
+        let id = roster.next_station;
+        for &k in instruments {
+            roster.holders[k] = Some(id);
+        }
+        roster.stations.insert(
+            id,
+            v1::StationInfo {
+                station_id: id,
+                role: role as i32,
+                client_name: client_name.to_string(),
+                instruments: names,
+                joined_at: Some(SystemTime::now().into()),
+            },
+        );
+        id
+    }
+
+    /// Removes a station; its instruments stay where it left them until a station
+    /// claims them again.
+    pub fn remove_station(&self, station: u64) {
+        let mut roster = self.roster();
+        roster.stations.remove(&station);
+        for h in &mut roster.holders {
+            if *h == Some(station) {
+                *h = None;
+            }
+        }
+    }
+
+    /// Hands a checked pose of instrument `k` to the mechanics thread.
+    pub fn submit_pose(&self, k: usize, pose: PoseIn) {
+        let mut slot = self.slots[k].lock().unwrap_or_else(|e| e.into_inner());
+        slot.write(Some(pose));
+    }
+
+    /// The newest frame and its channel.
+    pub fn frames(&self) -> watch::Receiver<Arc<Frame>> {
+        self.frames.clone()
+    }
+
+    /// The event stream.
+    pub fn events(&self) -> broadcast::Receiver<v1::Event> {
+        self.events.subscribe()
+    }
+
+    /// Publishes an event from the network side.
+    pub fn publish(
+        &self,
+        kind: v1::EventKind,
+        station: Option<u64>,
+        instrument: Option<String>,
+        detail: String,
+    ) {
+        let _ = self.events.send(v1::Event {
+            tick: self.stats.tick.load(Ordering::Relaxed),
+            sim_time_s: f64::from_bits(self.stats.sim_time_bits.load(Ordering::Relaxed)),
+            kind: kind as i32,
+            station_id: station,
+            instrument,
+            detail,
+        });
+    }
+
+    /// Resolves to the reason once the session is closing.
+    pub fn closing(&self) -> watch::Receiver<Option<String>> {
+        self.closing.subscribe()
+    }
+
+    pub fn is_closed(&self) -> bool {
+        self.closing.borrow().is_some()
+    }
+
+    /// Closes the session: streams end, the mechanics thread stops. Idempotent.
+    pub fn close(&self, reason: &str) {
+        let first = self.closing.send_if_modified(|c| {
+            if c.is_none() {
+                *c = Some(reason.to_string());
+                true
+            } else {
+                false
+            }
+        });
+        if first {
+            self.publish(
+                v1::EventKind::SessionClosing,
+                None,
+                None,
+                reason.to_string(),
+            );
+            self.stop.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Waits for the mechanics thread to end (after [`close`](Self::close)).
+    pub fn join(&self) {
+        let thread = self.thread.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let Some(t) = thread {
+            let _ = t.join();
+        }
+    }
+
+    /// The session as the contract describes it.
+    pub fn info(&self) -> v1::SessionInfo {
+        let roster = self.roster();
+        let s = &self.stats;
+        let bits = |a: &AtomicU64| f64::from_bits(a.load(Ordering::Relaxed));
+        v1::SessionInfo {
+            session_id: self.id.clone(),
+            scene: self.scene.name.clone(),
+            created_at: Some(self.created_at.into()),
+            tick: s.tick.load(Ordering::Relaxed),
+            sim_time_s: bits(&s.sim_time_bits),
+            stations: roster.stations.values().cloned().collect(),
+            instruments: self
+                .scene
+                .instruments
+                .iter()
+                .zip(&roster.holders)
+                .map(|(i, h)| v1::InstrumentHolder {
+                    instrument: i.name.clone(),
+                    station_id: *h,
+                })
+                .collect(),
+            observer_count: roster.observers,
+            idle_timeout_s: self.idle_timeout.map(|d| d.as_secs_f64()),
+            recording_file: None,
+            missed_deadlines: s.missed_deadlines.load(Ordering::Relaxed),
+            tick_time_p50_ms: bits(&s.tick_p50_bits),
+            tick_time_p99_ms: bits(&s.tick_p99_bits),
+            poses_accepted: s.poses_accepted.load(Ordering::Relaxed),
+            poses_rejected: s.poses_rejected.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Counts a stream as connected until the guard drops.
+    pub fn connect(self: &Arc<Self>) -> Connected {
+        self.stats.connected.fetch_add(1, Ordering::Relaxed);
+        Connected(self.clone())
+    }
+}
+
+/// A stream connected to a session (see [`Session::connect`]).
+pub struct Connected(Arc<Session>);
+
+impl Drop for Connected {
+    fn drop(&mut self) {
+        self.0.stats.connected.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}

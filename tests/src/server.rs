@@ -1,0 +1,180 @@
+//! A real server on a loopback port for integration tests, and the clients to talk to
+//! it.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use laparo_proto::v1;
+use laparo_server::service::{ServeConfig, ServeError, serve};
+use tokio::sync::{mpsc, oneshot};
+use tokio::task::JoinHandle;
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::transport::Channel;
+use tonic::{Request, Status, Streaming};
+
+/// A server serving on `127.0.0.1:<free port>` in this runtime.
+pub struct TestServer {
+    pub addr: SocketAddr,
+    stop: Option<oneshot::Sender<()>>,
+    task: JoinHandle<Result<(), ServeError>>,
+}
+
+impl TestServer {
+    pub async fn start(config: ServeConfig) -> Self {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let (stop, stopped) = oneshot::channel::<()>();
+        let task = tokio::spawn(serve(config, listener, async {
+            let _ = stopped.await;
+        }));
+        TestServer {
+            addr,
+            stop: Some(stop),
+            task,
+        }
+    }
+
+    pub async fn channel(&self) -> Channel {
+        Channel::from_shared(format!("http://{}", self.addr))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap()
+    }
+
+    /// Shuts down as SIGTERM would and waits for `serve` to return.
+    pub async fn shutdown(mut self) -> Result<(), ServeError> {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        tokio::time::timeout(Duration::from_secs(20), &mut self.task)
+            .await
+            .expect("the server shuts down within 20 s")
+            .expect("the server task does not panic")
+    }
+}
+
+/// A request with a bearer token, if any.
+pub fn with_token<T>(message: T, token: Option<&str>) -> Request<T> {
+    let mut request = Request::new(message);
+    if let Some(t) = token {
+        request
+            .metadata_mut()
+            .insert("authorization", format!("Bearer {t}").parse().unwrap());
+    }
+    request
+}
+
+/// A joined (or refused) station stream: what it sends, what it receives.
+pub struct StationStream {
+    pub tx: mpsc::Sender<v1::StationMessage>,
+    pub rx: Streaming<v1::ServerMessage>,
+}
+
+/// Opens `Join` and sends `first`; the server's answer to the opening is the first
+/// message of `rx` (or the call's error).
+pub async fn join_raw(
+    channel: Channel,
+    token: Option<&str>,
+    first: Option<v1::StationMessage>,
+) -> Result<StationStream, Status> {
+    let (tx, out) = mpsc::channel(1024);
+    if let Some(m) = first {
+        tx.send(m).await.unwrap();
+    }
+    let mut client = v1::station_client::StationClient::new(channel);
+    let rx = client
+        .join(with_token(ReceiverStream::new(out), token))
+        .await?
+        .into_inner();
+    Ok(StationStream { tx, rx })
+}
+
+/// The opening message.
+pub fn open(session: &str, instruments: &[&str]) -> v1::StationMessage {
+    v1::StationMessage {
+        kind: Some(v1::station_message::Kind::Open(v1::JoinRequest {
+            session_id: session.to_string(),
+            role: v1::Role::Trainee as i32,
+            instruments: instruments.iter().map(|s| s.to_string()).collect(),
+            surface_frame_rate_hz: None,
+            client_name: "test".into(),
+        })),
+    }
+}
+
+/// A pose message.
+pub fn pose(instrument: &str, tip: [f64; 3], axis: [f64; 3], sequence: u64) -> v1::StationMessage {
+    let v = |a: [f64; 3]| v1::Vec3 {
+        x: a[0],
+        y: a[1],
+        z: a[2],
+    };
+    v1::StationMessage {
+        kind: Some(v1::station_message::Kind::Pose(v1::DevicePose {
+            instrument: instrument.to_string(),
+            pose: Some(v1::Pose {
+                tip: Some(v(tip)),
+                axis: Some(v(axis)),
+            }),
+            device_time_s: 0.0,
+            sequence,
+        })),
+    }
+}
+
+/// Joins `session` claiming `instruments`, and waits for `Joined`.
+pub async fn join(
+    channel: Channel,
+    token: Option<&str>,
+    session: &str,
+    instruments: &[&str],
+) -> Result<(StationStream, v1::Joined), Status> {
+    let mut s = join_raw(channel, token, Some(open(session, instruments))).await?;
+    match s.rx.message().await? {
+        Some(v1::ServerMessage {
+            kind: Some(v1::server_message::Kind::Joined(j)),
+        }) => Ok((s, j)),
+        other => panic!("expected Joined, got {other:?}"),
+    }
+}
+
+/// Creates a session of the default scene.
+pub async fn create_session(
+    channel: Channel,
+    token: Option<&str>,
+) -> Result<v1::SessionInfo, Status> {
+    v1::sessions_client::SessionsClient::new(channel)
+        .create_session(with_token(
+            v1::CreateSessionRequest {
+                scene: "default".into(),
+                idle_timeout_s: None,
+                record: None,
+            },
+            token,
+        ))
+        .await
+        .map(|r| r.into_inner())
+}
+
+/// Reads server messages until `pred` holds for one (returning it) or `timeout`.
+pub async fn wait_for<F>(
+    rx: &mut Streaming<v1::ServerMessage>,
+    timeout: Duration,
+    mut pred: F,
+) -> Option<v1::ServerMessage>
+where
+    F: FnMut(&v1::ServerMessage) -> bool,
+{
+    tokio::time::timeout(timeout, async {
+        while let Ok(Some(m)) = rx.message().await {
+            if pred(&m) {
+                return Some(m);
+            }
+        }
+        None
+    })
+    .await
+    .ok()
+    .flatten()
+}
