@@ -90,10 +90,6 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         let listener = tokio::net::TcpListener::bind(args.listen)
             .await
             .map_err(|e| format!("cannot listen on {}: {e}", args.listen))?;
-        eprintln!(
-            "laparo-server: serving laparo.v1 on {}",
-            listener.local_addr().map_err(|e| e.to_string())?
-        );
         serve(config, listener, shutdown_signal())
             .await
             .map_err(|e| e.to_string())

@@ -554,3 +554,60 @@ async fn a_public_address_needs_tls_and_tokens_or_insecure() {
     .await;
     assert!(allowed.is_ok(), "{allowed:?}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tls_with_tokens_serves_a_public_address() {
+    use tonic::transport::{Certificate, ClientTlsConfig};
+    let dir = std::env::temp_dir().join(format!("laparo-tls-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let (cert_pem, key_pem) = (cert.cert.pem(), cert.signing_key.serialize_pem());
+    std::fs::write(dir.join("cert.pem"), &cert_pem).unwrap();
+    std::fs::write(dir.join("key.pem"), &key_pem).unwrap();
+    let mut tokens = Tokens::default();
+    tokens.insert("instructor-token", Caller::open());
+    // Not loopback, yet allowed: TLS and tokens.
+    let listener = tokio::net::TcpListener::bind("0.0.0.0:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let config = ServeConfig {
+        tokens: Some(tokens),
+        tls: Some(laparo_server::service::TlsFiles {
+            cert: dir.join("cert.pem"),
+            key: dir.join("key.pem"),
+        }),
+        ..ServeConfig::default()
+    };
+    let server = tokio::spawn(laparo_server::service::serve(config, listener, async {
+        let _ = stopped.await;
+    }));
+    let tls = ClientTlsConfig::new()
+        .ca_certificate(Certificate::from_pem(&cert_pem))
+        .domain_name("localhost");
+    let ch = Channel::from_shared(format!("https://127.0.0.1:{port}"))
+        .unwrap()
+        .tls_config(tls)
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let info = create_session(ch.clone(), Some("instructor-token"))
+        .await
+        .unwrap();
+    assert!(!info.session_id.is_empty());
+    // Plain text to a TLS port gets nowhere.
+    let plain = Channel::from_shared(format!("http://127.0.0.1:{port}"))
+        .unwrap()
+        .connect()
+        .await;
+    if let Ok(plain) = plain {
+        assert!(
+            create_session(plain, Some("instructor-token"))
+                .await
+                .is_err()
+        );
+    }
+    let _ = stop.send(());
+    server.await.unwrap().unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
