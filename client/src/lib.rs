@@ -31,4 +31,5 @@ pub use laparo_proto as proto;
 pub mod connect;
 pub mod haptics;
 pub mod latency;
+pub mod station;
 pub mod trajectory;
