@@ -31,5 +31,6 @@ pub use laparo_proto as proto;
 pub mod connect;
 pub mod haptics;
 pub mod latency;
+pub mod observe;
 pub mod station;
 pub mod trajectory;
