@@ -31,6 +31,7 @@ pub use laparo_proto as proto;
 pub mod connect;
 pub mod haptics;
 pub mod latency;
+pub mod load;
 pub mod observe;
 pub mod station;
 pub mod trajectory;
