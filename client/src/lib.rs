@@ -28,6 +28,7 @@
 
 pub use laparo_proto as proto;
 
+pub mod cli;
 pub mod connect;
 pub mod haptics;
 pub mod latency;
