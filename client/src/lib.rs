@@ -1,8 +1,18 @@
 //! laparo client library: the trainee station, the 1 kHz force loop (haptics), the
-//! instructor's observer, replay and the demo.
+//! instructor's observer and the load test.
 //!
-//! The client speaks the contract in [`laparo_proto`]; the station, observer, replay
-//! and demo land with the server and recording work.
+//! The client speaks the contract in [`laparo_proto`]:
+//!
+//! - [`connect`]: a channel to the server (http or https with a CA certificate) and
+//!   the bearer-token interceptor.
+//! - [`station`]: [`run_station`](station::run_station) joins a session and drives
+//!   instruments through force loops on their own threads, measuring pose-to-state
+//!   latency ([`latency`]) with scripted gestures ([`trajectory`]).
+//! - [`observe`]: [`run_observe`](observe::run_observe), a live view of a session.
+//! - [`load`]: [`run_load`](load::run_load), N concurrent stations on one session.
+//! - [`cli`]: the `laparo` command line's arguments.
+//!
+//! Replay and the demo land with the server and recording work.
 //!
 //! # Force loop
 //!
@@ -18,4 +28,11 @@
 
 pub use laparo_proto as proto;
 
+pub mod cli;
+pub mod connect;
 pub mod haptics;
+pub mod latency;
+pub mod load;
+pub mod observe;
+pub mod station;
+pub mod trajectory;

@@ -1,20 +1,263 @@
-//! `laparo`: the client command line.
+//! `laparo`: the client command line. The arguments are defined in
+//! [`laparo_client::cli`]; this file runs them and prints progress and summaries.
+//!
+//! Exit status: 0 on success, 1 when the run fails (server unreachable, session not
+//! found, stream ended with an error status), 2 for a usage error.
+
+use std::process::ExitCode;
+use std::time::Duration;
 
 use clap::Parser;
+use laparo_client::cli::{Cli, Command, LoadArgs, ObserveArgs, StationArgs};
+use laparo_client::load::{LoadConfig, LoadSummary, run_load};
+use laparo_client::observe::{ObserveConfig, ObserveReport, event_line, run_observe};
+use laparo_client::station::{StationConfig, StationProgress, StationSummary, run_station};
+use tokio::sync::watch;
 
-/// laparo client: stations, force loop, observer, replay and demo.
-///
-/// No subcommand is available yet: the station, observe, replay and demo commands
-/// arrive with the server and recording work. Until then, run the simulation
-/// headless with `laparo-server run`.
-#[derive(Parser, Debug)]
-#[command(name = "laparo", version, about)]
-struct Cli {}
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let runtime = match tokio::runtime::Runtime::new() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("laparo: cannot start the async runtime: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let result = runtime.block_on(async {
+        match cli.command {
+            Command::Station(args) => station(args).await,
+            Command::Observe(args) => observe(args).await,
+            Command::Load(args) => load(args).await,
+        }
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("laparo: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
 
-fn main() {
-    let _cli = Cli::parse();
-    eprintln!(
-        "laparo: no client command yet; run the simulation headless with `laparo-server run`"
+type BoxError = Box<dyn std::error::Error>;
+
+/// Completes on Ctrl-C (never if the signal cannot be watched).
+fn ctrl_c() -> std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>> {
+    Box::pin(async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    })
+}
+
+async fn station(args: StationArgs) -> Result<(), BoxError> {
+    let (progress_tx, mut progress_rx) = watch::channel(StationProgress::default());
+    let config = StationConfig {
+        connect: args.server.connect_config(),
+        pose_rate_hz: args.pose_rate,
+        haptic_rate_hz: args.haptic_rate,
+        surface_frame_rate_hz: args.frame_rate,
+        duration: args.seconds,
+        progress: Some(progress_tx),
+        on_event: Some(Box::new(|e| println!("event  {}", event_line(e)))),
+        stop: Some(ctrl_c()),
+        client_name: format!("laparo station ({})", args.instruments.join(",")),
+        ..StationConfig::new(
+            args.server.server.clone(),
+            args.session.clone(),
+            args.instruments.clone(),
+        )
+    };
+    println!(
+        "station: joining session {} at {} with {:?}, poses at {} Hz, force loops at {} Hz",
+        args.session, args.server.server, args.instruments, args.pose_rate, args.haptic_rate
     );
-    std::process::exit(2);
+    let run = run_station(config);
+    tokio::pin!(run);
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    tick.tick().await;
+    let summary = loop {
+        tokio::select! {
+            result = &mut run => break result?,
+            _ = tick.tick() => {
+                let p = progress_rx.borrow_and_update().clone();
+                print_progress(&p);
+            }
+        }
+    };
+    print_station_summary(&summary);
+    Ok(())
+}
+
+fn print_progress(p: &StationProgress) {
+    let forces: Vec<String> = p
+        .forces_n
+        .iter()
+        .zip(&p.haptic_rates_hz)
+        .map(|((name, f), hz)| format!("{name} {f:.2} N @ {hz:.0} Hz"))
+        .collect();
+    println!(
+        "{:>6.1} s  tick {:>7}  t {:>8.3} s  frames {:>6}  poses {:>7}  latency p50 {:.2} ms p99 {:.2} ms  {}{}",
+        p.elapsed_s,
+        p.tick,
+        p.sim_time_s,
+        p.frames,
+        p.poses_sent,
+        p.latency_p50_ms,
+        p.latency_p99_ms,
+        forces.join("  "),
+        if p.errors > 0 || p.models_invalid > 0 {
+            format!("  errors {} invalid models {}", p.errors, p.models_invalid)
+        } else {
+            String::new()
+        }
+    );
+}
+
+fn print_station_summary(s: &StationSummary) {
+    println!();
+    println!(
+        "station {} in session {}: {:?} after {:.1} s",
+        s.station_id, s.session_id, s.end, s.elapsed_s
+    );
+    println!("  instruments granted  {:?}", s.instruments);
+    println!("  ticks seen           {} (last {})", s.ticks, s.last_tick);
+    println!("  surface frames       {}", s.frames);
+    println!("  instrument states    {}", s.states);
+    println!("  events               {}", s.events);
+    println!(
+        "  poses sent           {} ({} dropped, queue full)",
+        s.poses_sent, s.poses_dropped
+    );
+    if s.errors.is_empty() {
+        println!("  station errors       none");
+    } else {
+        for (code, n) in &s.errors {
+            println!("  station errors       {code}: {n}");
+        }
+    }
+    println!("  max |force|          {:.3} N", s.max_force_n);
+    println!("  pose-to-state        {}", s.latency);
+    for i in &s.per_instrument {
+        let l = &i.loop_stats;
+        println!(
+            "  {}: models {} applied, {} invalid; max |F| {:.3} N; force loop {} ticks at {:.1} Hz, \
+             jitter p50 {:.1} µs p99 {:.1} µs max {:.1} µs, {} missed deadlines, {} clamped, max model age {:.1} ms",
+            i.name,
+            i.models_applied,
+            i.models_invalid,
+            i.max_force_n,
+            l.ticks,
+            l.rate_hz,
+            l.jitter.p50 * 1e6,
+            l.jitter.p99 * 1e6,
+            l.jitter.max * 1e6,
+            l.missed_deadlines,
+            l.clamped_ticks,
+            l.max_model_age_s * 1e3,
+        );
+    }
+}
+
+async fn observe(args: ObserveArgs) -> Result<(), BoxError> {
+    let config = ObserveConfig {
+        connect: args.server.connect_config(),
+        frame_rate_hz: args.rate,
+        duration: args.seconds,
+        stop: Some(ctrl_c()),
+        ..ObserveConfig::new(args.server.server.clone(), args.session.clone())
+    };
+    let summary = run_observe(config, |report| match report {
+        ObserveReport::Scene(scene) => {
+            let s = scene.summary.clone().unwrap_or_default();
+            let names: Vec<&str> = scene.instruments.iter().map(|i| i.name.as_str()).collect();
+            println!(
+                "observing {}: scene {:?}, {} tetrahedra, mechanics {} Hz, instruments {:?}",
+                args.session, s.name, s.tetrahedron_count, s.mechanics_rate_hz, names
+            );
+        }
+        ObserveReport::Status(line) => println!("{line}"),
+        ObserveReport::Event(event) => println!("event  {}", event_line(event)),
+    })
+    .await?;
+    println!();
+    println!(
+        "watched {:.1} s: {} ticks, {} frames, {} states, {} events, max |force| {:.3} N{}",
+        summary.elapsed_s,
+        summary.ticks,
+        summary.frames,
+        summary.states,
+        summary.events,
+        summary.max_force_n,
+        if summary.server_closed {
+            "; the session closed"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
+
+async fn load(args: LoadArgs) -> Result<(), BoxError> {
+    let config = LoadConfig {
+        connect: args.server.connect_config(),
+        session: args.session.clone(),
+        stations: args.stations as usize,
+        pose_rate_hz: args.pose_rate,
+        duration: args.seconds,
+        surface_frame_rate_hz: args.frame_rate,
+    };
+    println!(
+        "load: {} stations for {:.1} s at {}; the first ones (one per free instrument) send poses at {} Hz, the others only receive",
+        args.stations,
+        args.seconds.as_secs_f64(),
+        args.server.server,
+        args.pose_rate
+    );
+    let summary = run_load(config, |p| {
+        println!(
+            "  {} joined  frames {:>8}  states {:>8}  poses {:>8}",
+            p.joined, p.frames, p.states, p.poses_sent
+        );
+    })
+    .await?;
+    println!();
+    println!(
+        "session {}{}: {} of {} stations sent poses; pose-to-state {}",
+        summary.session_id,
+        if summary.created_session {
+            " (created for this run, closed)"
+        } else {
+            ""
+        },
+        summary.posing_stations,
+        summary.stations,
+        summary.latency
+    );
+    if summary.poses_dropped > 0 {
+        println!("poses dropped (queue full): {}", summary.poses_dropped);
+    }
+    for (code, n) in &summary.errors {
+        println!("station errors {code}: {n}");
+    }
+    for failure in &summary.failures {
+        println!("failed: {failure}");
+    }
+    println!();
+    println!("{}", LoadSummary::markdown_header());
+    println!("{}", summary.markdown_row());
+    if !summary.failures.is_empty() {
+        return Err(format!("{} station(s) failed", summary.failures.len()).into());
+    }
+    Ok(())
 }

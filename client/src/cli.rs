@@ -1,0 +1,326 @@
+//! The `laparo` command line: its arguments, parsed and checked with clap.
+//! `main.rs` runs the subcommands; keeping the definitions in the library lets them
+//! be tested with [`Cli::try_parse_from`](clap::Parser::try_parse_from).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::connect::ConnectConfig;
+use crate::haptics::force_loop::{DEFAULT_RATE_HZ, RATE_RANGE_HZ};
+use crate::station::DEFAULT_POSE_RATE_HZ;
+
+/// laparo client: trainee stations with force loops, live observation, load tests.
+#[derive(Parser, Debug)]
+#[command(name = "laparo", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Join a session as a trainee station: drive instruments with simulated devices
+    /// (a scripted press into the liver) through 1 kHz force loops, and report
+    /// forces, rates and pose-to-state latency.
+    Station(StationArgs),
+    /// Watch a session: one status line per second and the events as they come.
+    Observe(ObserveArgs),
+    /// Load a session with N concurrent stations and report latency, frames and the
+    /// session's tick times as a markdown table row.
+    Load(LoadArgs),
+}
+
+/// How to reach the server.
+#[derive(Args, Debug, Clone)]
+pub struct ServerArgs {
+    /// Server URL, http://host:port or https://host:port.
+    #[arg(long, value_name = "URL")]
+    pub server: String,
+    /// Bearer token sent with every call.
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// CA certificate (PEM) to trust for an https server.
+    #[arg(long, value_name = "FILE")]
+    pub ca: Option<PathBuf>,
+}
+
+impl ServerArgs {
+    /// The connection settings.
+    pub fn connect_config(&self) -> ConnectConfig {
+        ConnectConfig {
+            token: self.token.clone(),
+            ca_file: self.ca.clone(),
+            ..ConnectConfig::new(self.server.clone())
+        }
+    }
+}
+
+/// `laparo station`.
+#[derive(Args, Debug, Clone)]
+pub struct StationArgs {
+    #[command(flatten)]
+    pub server: ServerArgs,
+    /// Session to join.
+    #[arg(long, value_name = "ID")]
+    pub session: String,
+    /// Instruments to claim, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "left",
+        value_name = "NAMES"
+    )]
+    pub instruments: Vec<String>,
+    /// Rate at which device poses are sent, Hz.
+    #[arg(long, value_name = "HZ", default_value_t = DEFAULT_POSE_RATE_HZ, value_parser = positive_rate)]
+    pub pose_rate: f64,
+    /// Haptic rate of the force loops, Hz (300 to 4000).
+    #[arg(long, value_name = "HZ", default_value_t = DEFAULT_RATE_HZ, value_parser = haptic_rate)]
+    pub haptic_rate: f64,
+    /// Surface frame rate to ask for, Hz (default: the mechanics rate).
+    #[arg(long, value_name = "HZ", value_parser = positive_rate)]
+    pub frame_rate: Option<f64>,
+    /// How long to stay, s (default: until Ctrl-C or the session closes).
+    #[arg(long, value_name = "T", value_parser = seconds)]
+    pub seconds: Option<Duration>,
+}
+
+/// `laparo observe`.
+#[derive(Args, Debug, Clone)]
+pub struct ObserveArgs {
+    #[command(flatten)]
+    pub server: ServerArgs,
+    /// Session to watch.
+    #[arg(long, value_name = "ID")]
+    pub session: String,
+    /// Frame rate to ask for, Hz (default: the mechanics rate).
+    #[arg(long, value_name = "HZ", value_parser = positive_rate)]
+    pub rate: Option<f64>,
+    /// How long to watch, s (default: until Ctrl-C or the session closes).
+    #[arg(long, value_name = "T", value_parser = seconds)]
+    pub seconds: Option<Duration>,
+}
+
+/// `laparo load`.
+#[derive(Args, Debug, Clone)]
+pub struct LoadArgs {
+    #[command(flatten)]
+    pub server: ServerArgs,
+    /// Session to load (default: create one from the default scene, closed at the
+    /// end).
+    #[arg(long, value_name = "ID")]
+    pub session: Option<String>,
+    /// Concurrent stations; the first ones hold one instrument each and send poses,
+    /// the others only receive.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub stations: u32,
+    /// Pose rate of each posing station, Hz.
+    #[arg(long, value_name = "HZ", value_parser = positive_rate)]
+    pub pose_rate: f64,
+    /// How long each station stays, s.
+    #[arg(long, value_name = "T", value_parser = seconds)]
+    pub seconds: Duration,
+    /// Surface frame rate the stations ask for, Hz (default: the mechanics rate).
+    #[arg(long, value_name = "HZ", value_parser = positive_rate)]
+    pub frame_rate: Option<f64>,
+}
+
+fn number(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .map_err(|_| format!("{s:?} is not a number"))
+}
+
+/// A rate in Hz: finite and > 0.
+pub fn positive_rate(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} Hz: a rate must be finite and > 0"))
+    }
+}
+
+/// A haptic rate in Hz, within the force loop's range.
+pub fn haptic_rate(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if RATE_RANGE_HZ.contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} Hz: the haptic rate must be between {} and {} Hz",
+            RATE_RANGE_HZ.start(),
+            RATE_RANGE_HZ.end()
+        ))
+    }
+}
+
+/// A duration in seconds: finite and > 0.
+pub fn seconds(s: &str) -> Result<Duration, String> {
+    let v = number(s)?;
+    if v.is_finite() && v > 0.0 && v < 1e9 {
+        Ok(Duration::from_secs_f64(v))
+    } else {
+        Err(format!("{v} s: a duration must be > 0"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::error::ErrorKind;
+
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+        Cli::try_parse_from(std::iter::once("laparo").chain(args.iter().copied()))
+    }
+
+    #[test]
+    fn station_defaults_and_options() {
+        let cli = parse(&[
+            "station",
+            "--server",
+            "http://127.0.0.1:50051",
+            "--session",
+            "s1",
+        ])
+        .unwrap();
+        let Command::Station(a) = cli.command else {
+            panic!("not station")
+        };
+        assert_eq!(a.instruments, vec!["left".to_owned()]);
+        assert_eq!(a.pose_rate, DEFAULT_POSE_RATE_HZ);
+        assert_eq!(a.haptic_rate, DEFAULT_RATE_HZ);
+        assert_eq!(a.seconds, None);
+        assert_eq!(a.server.connect_config().token, None);
+
+        let cli = parse(&[
+            "station",
+            "--server",
+            "https://sim.example:443",
+            "--session",
+            "s1",
+            "--instruments",
+            "left,right",
+            "--pose-rate",
+            "500",
+            "--seconds",
+            "2.5",
+            "--token",
+            "t0k",
+            "--ca",
+            "ca.pem",
+            "--haptic-rate",
+            "2000",
+        ])
+        .unwrap();
+        let Command::Station(a) = cli.command else {
+            panic!("not station")
+        };
+        assert_eq!(a.instruments, vec!["left".to_owned(), "right".to_owned()]);
+        assert_eq!(a.pose_rate, 500.0);
+        assert_eq!(a.haptic_rate, 2000.0);
+        assert_eq!(a.seconds, Some(Duration::from_millis(2500)));
+        let c = a.server.connect_config();
+        assert_eq!(c.token.as_deref(), Some("t0k"));
+        assert_eq!(c.ca_file, Some(PathBuf::from("ca.pem")));
+    }
+
+    #[test]
+    fn observe_and_load_parse() {
+        let cli = parse(&[
+            "observe",
+            "--server",
+            "http://h:1",
+            "--session",
+            "s",
+            "--rate",
+            "10",
+            "--seconds",
+            "3",
+        ])
+        .unwrap();
+        let Command::Observe(a) = cli.command else {
+            panic!("not observe")
+        };
+        assert_eq!(
+            (a.rate, a.seconds),
+            (Some(10.0), Some(Duration::from_secs(3)))
+        );
+
+        let cli = parse(&[
+            "load",
+            "--server",
+            "http://h:1",
+            "--stations",
+            "8",
+            "--pose-rate",
+            "250",
+            "--seconds",
+            "10",
+        ])
+        .unwrap();
+        let Command::Load(a) = cli.command else {
+            panic!("not load")
+        };
+        assert_eq!((a.stations, a.pose_rate, a.session), (8, 250.0, None));
+    }
+
+    #[test]
+    fn bad_values_are_usage_errors() {
+        let base = ["station", "--server", "http://h:1", "--session", "s"];
+        for bad in [
+            &["--pose-rate", "0"][..],
+            &["--pose-rate=-5"],
+            &["--pose-rate", "fast"],
+            &["--pose-rate", "inf"],
+            &["--haptic-rate", "100"],
+            &["--seconds", "0"],
+        ] {
+            let args: Vec<&str> = base.iter().chain(bad).copied().collect();
+            let e = parse(&args).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad:?}");
+            assert_eq!(e.exit_code(), 2);
+        }
+        let e = parse(&[
+            "observe",
+            "--server",
+            "http://h:1",
+            "--session",
+            "s",
+            "--rate",
+            "0",
+        ])
+        .unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ValueValidation);
+        let e = parse(&[
+            "load",
+            "--server",
+            "http://h:1",
+            "--pose-rate",
+            "250",
+            "--seconds",
+            "1",
+        ])
+        .unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
+        let e = parse(&[
+            "load",
+            "--server",
+            "http://h:1",
+            "--stations",
+            "0",
+            "--pose-rate",
+            "250",
+            "--seconds",
+            "1",
+        ])
+        .unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ValueValidation);
+        assert!(parse(&["demo"]).is_err(), "no demo subcommand yet");
+    }
+}

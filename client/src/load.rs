@@ -1,0 +1,505 @@
+//! A load test: N concurrent stations on one session, each on its own connection.
+//!
+//! The first `min(N, free instruments)` stations each claim one free instrument of
+//! the session (the default scene has two, "left" and "right") and send scripted
+//! poses (the default press of [`crate::trajectory`]) from a tokio task at the pose
+//! rate; no force loop runs. The other stations join with an empty instrument list:
+//! they receive surface frames, instrument states and events, and send no pose.
+//!
+//! Measured: the pose-to-state latency over every posing station (as in
+//! [`crate::station`]), the frames and states each station received, and, from
+//! `Sessions.GetSession` at the end, the session's missed mechanics deadlines, tick
+//! time percentiles and accepted and rejected pose counts. Without a session id a
+//! session of the server's default scene is created and closed at the end.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use tokio::task::JoinSet;
+use tokio::time::MissedTickBehavior;
+
+use crate::connect::{ConnectConfig, Connection, connect};
+use crate::latency::{LatencyHistogram, LatencySummary, SendTimes};
+use crate::proto::force::wire;
+use crate::proto::v1::{
+    self, CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Leave, Role,
+    SessionInfo, StationMessage, server_message, station_message,
+};
+use crate::station::{
+    JoinedStream, LEAVE_GRACE, SEND_TIMES_CAPACITY, StationError, error_code_name, join,
+};
+use crate::trajectory::default_press_for;
+
+/// What [`run_load`] does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadConfig {
+    /// The server.
+    pub connect: ConnectConfig,
+    /// Session to load; `None` creates one from the server's default scene (and
+    /// closes it at the end).
+    pub session: Option<String>,
+    /// Concurrent stations, ≥ 1.
+    pub stations: usize,
+    /// Pose rate of each posing station, Hz (finite, > 0).
+    pub pose_rate_hz: f64,
+    /// How long each station stays once joined.
+    pub duration: Duration,
+    /// Surface frame rate the stations ask for; `None` for the mechanics rate.
+    pub surface_frame_rate_hz: Option<f64>,
+}
+
+/// Running totals over all stations, for live display.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadProgress {
+    /// Stations joined so far.
+    pub joined: u64,
+    /// Surface frames received by all stations.
+    pub frames: u64,
+    /// Instrument states received by all stations.
+    pub states: u64,
+    /// Poses sent by all stations.
+    pub poses_sent: u64,
+}
+
+#[derive(Debug, Default)]
+struct Counters {
+    joined: AtomicU64,
+    frames: AtomicU64,
+    states: AtomicU64,
+    poses_sent: AtomicU64,
+}
+
+impl Counters {
+    fn snapshot(&self) -> LoadProgress {
+        LoadProgress {
+            joined: self.joined.load(Ordering::Relaxed),
+            frames: self.frames.load(Ordering::Relaxed),
+            states: self.states.load(Ordering::Relaxed),
+            poses_sent: self.poses_sent.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// What one station of a load run saw.
+#[derive(Clone, Debug)]
+struct StationLoad {
+    posing: bool,
+    frames: u64,
+    states: u64,
+    poses_sent: u64,
+    poses_dropped: u64,
+    errors: BTreeMap<String, u64>,
+    latency: LatencyHistogram,
+}
+
+/// The result of a load run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadSummary {
+    /// Session loaded.
+    pub session_id: String,
+    /// Whether the run created (and closed) it.
+    pub created_session: bool,
+    /// Stations started.
+    pub stations: usize,
+    /// Stations that held an instrument and sent poses.
+    pub posing_stations: usize,
+    /// Pose rate of each posing station, Hz.
+    pub pose_rate_hz: f64,
+    /// Configured duration, s.
+    pub seconds: f64,
+    /// Surface frames received by each station that completed, in station order.
+    pub frames_per_station: Vec<u64>,
+    /// Instrument states received by all stations.
+    pub states: u64,
+    /// Poses sent by all stations.
+    pub poses_sent: u64,
+    /// Poses dropped by the stations because their outgoing queue was full.
+    pub poses_dropped: u64,
+    /// Station errors received, by code name.
+    pub errors: BTreeMap<String, u64>,
+    /// Stations that failed, with why.
+    pub failures: Vec<String>,
+    /// Pose-to-state latency over all posing stations.
+    pub latency: LatencySummary,
+    /// The session at the end (`GetSession`): missed mechanics deadlines.
+    pub missed_deadlines: u64,
+    /// Median mechanics tick wall time, ms.
+    pub tick_time_p50_ms: f64,
+    /// 99th percentile mechanics tick wall time, ms.
+    pub tick_time_p99_ms: f64,
+    /// Poses the session accepted since it started.
+    pub poses_accepted: u64,
+    /// Poses the session rejected since it started.
+    pub poses_rejected: u64,
+}
+
+impl LoadSummary {
+    /// Mean surface frames per completed station.
+    pub fn mean_frames(&self) -> f64 {
+        if self.frames_per_station.is_empty() {
+            0.0
+        } else {
+            self.frames_per_station.iter().sum::<u64>() as f64
+                / self.frames_per_station.len() as f64
+        }
+    }
+
+    /// The header of the table [`markdown_row`](Self::markdown_row) fills.
+    pub fn markdown_header() -> String {
+        "| stations | posing | pose Hz | s | frames/station min | mean | latency p50 ms | p99 ms | p99.9 ms | missed deadlines | tick p50 ms | tick p99 ms | poses accepted | rejected |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            .to_owned()
+    }
+
+    /// This run as one markdown table row.
+    pub fn markdown_row(&self) -> String {
+        let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
+        format!(
+            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {} | {} |",
+            self.stations,
+            self.posing_stations,
+            self.pose_rate_hz,
+            self.seconds,
+            min,
+            self.mean_frames(),
+            self.latency.p50_ms,
+            self.latency.p99_ms,
+            self.latency.p999_ms,
+            self.missed_deadlines,
+            self.tick_time_p50_ms,
+            self.tick_time_p99_ms,
+            self.poses_accepted,
+            self.poses_rejected,
+        )
+    }
+}
+
+/// Which instrument each of `stations` stations claims: the free instruments of
+/// `session` in order, one each, then none.
+pub fn assign_instruments(session: &SessionInfo, stations: usize) -> Vec<Option<String>> {
+    let mut free = session
+        .instruments
+        .iter()
+        .filter(|h| h.station_id.is_none())
+        .map(|h| h.instrument.clone());
+    (0..stations).map(|_| free.next()).collect()
+}
+
+/// Runs the load test; see the [module documentation](self). `on_progress` is called
+/// every second with the running totals.
+pub async fn run_load(
+    config: LoadConfig,
+    mut on_progress: impl FnMut(LoadProgress),
+) -> Result<LoadSummary, StationError> {
+    if !(config.pose_rate_hz.is_finite() && config.pose_rate_hz > 0.0) {
+        return Err(StationError::Rate {
+            field: "pose rate",
+            value: config.pose_rate_hz,
+            expected: "finite and > 0",
+        });
+    }
+    let control = connect(&config.connect).await?;
+    let mut sessions = control.sessions();
+    let (session, created) = match &config.session {
+        Some(id) => (
+            sessions
+                .get_session(GetSessionRequest {
+                    session_id: id.clone(),
+                })
+                .await?
+                .into_inner(),
+            false,
+        ),
+        None => (
+            sessions
+                .create_session(CreateSessionRequest::default())
+                .await?
+                .into_inner(),
+            true,
+        ),
+    };
+    let session_id = session.session_id.clone();
+    let assignment = assign_instruments(&session, config.stations.max(1));
+    let posing_stations = assignment.iter().filter(|a| a.is_some()).count();
+
+    let counters = Arc::new(Counters::default());
+    let mut tasks = JoinSet::new();
+    for (index, instrument) in assignment.into_iter().enumerate() {
+        let connect_config = config.connect.clone();
+        let open = JoinRequest {
+            session_id: session_id.clone(),
+            role: Role::Trainee as i32,
+            instruments: instrument.into_iter().collect(),
+            surface_frame_rate_hz: config.surface_frame_rate_hz,
+            client_name: format!("laparo load station {index}"),
+        };
+        let counters = Arc::clone(&counters);
+        let (rate, duration) = (config.pose_rate_hz, config.duration);
+        tasks.spawn(async move {
+            let result = async {
+                let connection = connect(&connect_config).await?;
+                load_station(&connection, open, rate, duration, &counters).await
+            }
+            .await;
+            (index, result)
+        });
+    }
+
+    let mut results: Vec<(usize, Result<StationLoad, StationError>)> = Vec::new();
+    let mut progress_tick = tokio::time::interval_at(
+        tokio::time::Instant::now() + Duration::from_secs(1),
+        Duration::from_secs(1),
+    );
+    progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    loop {
+        tokio::select! {
+            joined = tasks.join_next() => match joined {
+                Some(Ok(result)) => results.push(result),
+                Some(Err(e)) => results.push((usize::MAX, Err(StationError::Protocol(format!("station task failed: {e}"))))),
+                None => break,
+            },
+            _ = progress_tick.tick() => on_progress(counters.snapshot()),
+        }
+    }
+    results.sort_by_key(|(i, _)| *i);
+
+    let mut latency = LatencyHistogram::new();
+    let mut summary = LoadSummary {
+        session_id: session_id.clone(),
+        created_session: created,
+        stations: config.stations.max(1),
+        posing_stations,
+        pose_rate_hz: config.pose_rate_hz,
+        seconds: config.duration.as_secs_f64(),
+        frames_per_station: Vec::new(),
+        states: 0,
+        poses_sent: 0,
+        poses_dropped: 0,
+        errors: BTreeMap::new(),
+        failures: Vec::new(),
+        latency: LatencySummary::default(),
+        missed_deadlines: 0,
+        tick_time_p50_ms: 0.0,
+        tick_time_p99_ms: 0.0,
+        poses_accepted: 0,
+        poses_rejected: 0,
+    };
+    for (index, result) in results {
+        match result {
+            Ok(station) => {
+                summary.frames_per_station.push(station.frames);
+                summary.states += station.states;
+                summary.poses_sent += station.poses_sent;
+                summary.poses_dropped += station.poses_dropped;
+                for (code, n) in station.errors {
+                    *summary.errors.entry(code).or_default() += n;
+                }
+                if station.posing {
+                    latency.merge(&station.latency);
+                }
+            }
+            Err(e) => summary.failures.push(format!("station {index}: {e}")),
+        }
+    }
+    summary.latency = latency.summary();
+
+    let info = sessions
+        .get_session(GetSessionRequest {
+            session_id: session_id.clone(),
+        })
+        .await?
+        .into_inner();
+    summary.missed_deadlines = info.missed_deadlines;
+    summary.tick_time_p50_ms = info.tick_time_p50_ms;
+    summary.tick_time_p99_ms = info.tick_time_p99_ms;
+    summary.poses_accepted = info.poses_accepted;
+    summary.poses_rejected = info.poses_rejected;
+    if created {
+        sessions
+            .close_session(CloseSessionRequest {
+                session_id,
+                reason: "load run finished".into(),
+            })
+            .await?;
+    }
+    Ok(summary)
+}
+
+/// One station of a load run: join, pose (if granted an instrument) and count for
+/// `duration`, then leave.
+async fn load_station(
+    connection: &Connection,
+    open: JoinRequest,
+    pose_rate_hz: f64,
+    duration: Duration,
+    counters: &Counters,
+) -> Result<StationLoad, StationError> {
+    let JoinedStream {
+        outgoing,
+        mut incoming,
+        joined,
+    } = join(connection, open).await?;
+    counters.joined.fetch_add(1, Ordering::Relaxed);
+    let t0 = Instant::now();
+    let scene = joined.scene.clone().unwrap_or_default();
+    // At most one instrument is claimed.
+    let instrument = joined.instruments.first().and_then(|name| {
+        let description = scene.instruments.iter().find(|d| &d.name == name)?;
+        Some((name.clone(), default_press_for(&scene, description)))
+    });
+    let mut load = StationLoad {
+        posing: instrument.is_some(),
+        frames: 0,
+        states: 0,
+        poses_sent: 0,
+        poses_dropped: 0,
+        errors: BTreeMap::new(),
+        latency: LatencyHistogram::new(),
+    };
+    let mut send_times = SendTimes::new(SEND_TIMES_CAPACITY);
+    let mut last_sequence: Option<u64> = None;
+    let mut sequence = 0u64;
+    let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / pose_rate_hz));
+    pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let deadline = tokio::time::sleep(duration);
+    tokio::pin!(deadline);
+
+    loop {
+        tokio::select! {
+            biased;
+            _ = &mut deadline => break,
+            message = incoming.message() => match message {
+                Ok(Some(message)) => match message.kind {
+                    Some(server_message::Kind::SurfaceFrame(_)) => {
+                        load.frames += 1;
+                        counters.frames.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Some(server_message::Kind::InstrumentState(state)) => {
+                        load.states += 1;
+                        counters.states.fetch_add(1, Ordering::Relaxed);
+                        let now = Instant::now();
+                        let mine = instrument.as_ref().is_some_and(|(name, _)| *name == state.instrument);
+                        let new_pose = state
+                            .pose_sequence
+                            .filter(|&s| mine && last_sequence.is_none_or(|last| s > last));
+                        if let Some(s) = new_pose {
+                            last_sequence = Some(s);
+                            if let Some(sent) = send_times.take(s) {
+                                load.latency.record(now - sent);
+                            }
+                        }
+                    }
+                    Some(server_message::Kind::Error(error)) => {
+                        *load.errors.entry(error_code_name(error.code)).or_default() += 1;
+                    }
+                    Some(server_message::Kind::Joined(_)) => {
+                        return Err(StationError::Protocol("Joined received twice".into()));
+                    }
+                    Some(server_message::Kind::Event(_)) | None => {}
+                },
+                // The session closed before the end of the run.
+                Ok(None) => return Ok(load),
+                Err(status) => return Err(status.into()),
+            },
+            _ = pose_tick.tick(), if instrument.is_some() => {
+                let Some((name, path)) = &instrument else { continue };
+                let t = t0.elapsed().as_secs_f64();
+                let (tip, axis) = path(t);
+                sequence += 1;
+                let message = StationMessage {
+                    kind: Some(station_message::Kind::Pose(v1::DevicePose {
+                        instrument: name.clone(),
+                        pose: Some(wire::to_pose(&tip, &axis)),
+                        device_time_s: t,
+                        sequence,
+                    })),
+                };
+                match outgoing.try_send(message) {
+                    Ok(()) => {
+                        send_times.record(sequence, Instant::now());
+                        load.poses_sent += 1;
+                        counters.poses_sent.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Err(_) => load.poses_dropped += 1,
+                }
+            }
+        }
+    }
+    let _ = outgoing.try_send(StationMessage {
+        kind: Some(station_message::Kind::Leave(Leave {
+            reason: "load run finished".into(),
+        })),
+    });
+    drop(outgoing);
+    let _ = tokio::time::timeout(LEAVE_GRACE, async {
+        while let Ok(Some(_)) = incoming.message().await {}
+    })
+    .await;
+    Ok(load)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::proto::v1::InstrumentHolder;
+
+    #[test]
+    fn stations_beyond_the_free_instruments_claim_none() {
+        let session = SessionInfo {
+            instruments: vec![
+                InstrumentHolder {
+                    instrument: "left".into(),
+                    station_id: None,
+                },
+                InstrumentHolder {
+                    instrument: "middle".into(),
+                    station_id: Some(4),
+                },
+                InstrumentHolder {
+                    instrument: "right".into(),
+                    station_id: None,
+                },
+            ],
+            ..Default::default()
+        };
+        assert_eq!(
+            assign_instruments(&session, 4),
+            vec![Some("left".into()), Some("right".into()), None, None]
+        );
+        assert_eq!(assign_instruments(&session, 1), vec![Some("left".into())]);
+    }
+
+    #[test]
+    fn markdown_row_has_a_cell_per_header_column() {
+        let summary = LoadSummary {
+            session_id: "s".into(),
+            created_session: true,
+            stations: 3,
+            posing_stations: 2,
+            pose_rate_hz: 250.0,
+            seconds: 10.0,
+            frames_per_station: vec![600, 590, 601],
+            states: 0,
+            poses_sent: 0,
+            poses_dropped: 0,
+            errors: BTreeMap::new(),
+            failures: Vec::new(),
+            latency: LatencySummary::default(),
+            missed_deadlines: 1,
+            tick_time_p50_ms: 2.0,
+            tick_time_p99_ms: 4.0,
+            poses_accepted: 5000,
+            poses_rejected: 0,
+        };
+        let header = LoadSummary::markdown_header();
+        let columns = header.lines().next().unwrap().matches('|').count();
+        let row = summary.markdown_row();
+        assert_eq!(row.matches('|').count(), columns, "{row}");
+        assert!(
+            row.starts_with("| 3 | 2 | 250 | 10 | 590 | 597.0 |"),
+            "{row}"
+        );
+    }
+}
