@@ -23,6 +23,11 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The main job as a newcomer sees it: start a server in this process on a free
+    /// loopback port, join the default scene as a station with a 1 kHz force loop,
+    /// press the liver with the tip and then sideways with the shaft, show live
+    /// progress, and print a summary.
+    Demo(DemoArgs),
     /// Join a session as a trainee station: drive instruments with simulated devices
     /// (a scripted press into the liver) through 1 kHz force loops, and report
     /// forces, rates and pose-to-state latency.
@@ -103,6 +108,18 @@ pub struct ObserveArgs {
     /// How long to watch, s (default: until Ctrl-C or the session closes).
     #[arg(long, value_name = "T", value_parser = seconds)]
     pub seconds: Option<Duration>,
+}
+
+/// `laparo demo`.
+#[derive(Args, Debug, Clone)]
+pub struct DemoArgs {
+    /// How long the demo runs, s (the gesture takes 10 s and repeats).
+    #[arg(long, value_name = "T", value_parser = seconds, default_value = "10")]
+    pub seconds: Duration,
+    /// Where sessions are recorded (recording arrives with the recording work; the
+    /// demo says so).
+    #[arg(long, value_name = "DIR")]
+    pub recordings: Option<std::path::PathBuf>,
 }
 
 /// `laparo load`.
@@ -321,6 +338,10 @@ mod tests {
         ])
         .unwrap_err();
         assert_eq!(e.kind(), ErrorKind::ValueValidation);
-        assert!(parse(&["demo"]).is_err(), "no demo subcommand yet");
+        let Command::Demo(demo) = parse(&["demo"]).unwrap().command else {
+            panic!("demo parses");
+        };
+        assert_eq!(demo.seconds, Duration::from_secs(10));
+        assert!(parse(&["demo", "--seconds", "-1"]).is_err());
     }
 }

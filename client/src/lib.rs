@@ -30,6 +30,7 @@ pub use laparo_proto as proto;
 
 pub mod cli;
 pub mod connect;
+pub mod demo;
 pub mod haptics;
 pub mod latency;
 pub mod load;

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use laparo_client::cli::{Cli, Command, LoadArgs, ObserveArgs, StationArgs};
+use laparo_client::cli::{Cli, Command, DemoArgs, LoadArgs, ObserveArgs, StationArgs};
 use laparo_client::load::{LoadConfig, LoadSummary, run_load};
 use laparo_client::observe::{ObserveConfig, ObserveReport, event_line, run_observe};
 use laparo_client::station::{StationConfig, StationProgress, StationSummary, run_station};
@@ -35,6 +35,7 @@ fn main() -> ExitCode {
     };
     let result = runtime.block_on(async {
         match cli.command {
+            Command::Demo(args) => demo(args).await,
             Command::Station(args) => station(args).await,
             Command::Observe(args) => observe(args).await,
             Command::Load(args) => load(args).await,
@@ -58,6 +59,68 @@ fn ctrl_c() -> std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>> {
             std::future::pending::<()>().await;
         }
     })
+}
+
+/// `laparo demo`: a server in this process, one station pressing the liver.
+async fn demo(args: DemoArgs) -> Result<(), BoxError> {
+    use laparo_client::connect::{ConnectConfig, connect};
+    use laparo_server::service::{ServeConfig, serve};
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+    let url = format!("http://{}", listener.local_addr()?);
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(serve(ServeConfig::default(), listener, async {
+        let _ = stopped.await;
+    }));
+    let connection = connect(&ConnectConfig::new(url.clone())).await?;
+    let session = connection
+        .sessions()
+        .create_session(laparo_client::proto::v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: None,
+        })
+        .await?
+        .into_inner();
+    println!(
+        "demo: laparo-server in this process at {url}; session {} of the default scene (SOFA's liver at 0.19 m, E = 4.5 kPa)",
+        session.session_id
+    );
+    println!(
+        "demo: station with the left instrument and a 1 kHz force loop: tip press (0–4 s), then the shaft sideways (4–10 s)"
+    );
+    let (progress_tx, mut progress_rx) = watch::channel(StationProgress::default());
+    let config = StationConfig {
+        duration: Some(args.seconds),
+        progress: Some(progress_tx),
+        on_event: Some(Box::new(|e| println!("event  {}", event_line(e)))),
+        stop: Some(ctrl_c()),
+        gesture: Some(Box::new(laparo_client::demo::gesture)),
+        client_name: "laparo demo".into(),
+        ..StationConfig::new(url, session.session_id.clone(), vec!["left".into()])
+    };
+    let run = run_station(config);
+    tokio::pin!(run);
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    tick.tick().await;
+    let summary = loop {
+        tokio::select! {
+            result = &mut run => break result,
+            _ = tick.tick() => print_progress(&progress_rx.borrow_and_update().clone()),
+        }
+    };
+    let _ = stop.send(());
+    let served = server.await;
+    let summary = summary?;
+    print_station_summary(&summary);
+    match args.recordings {
+        Some(dir) => println!(
+            "  recording            none: this build does not record sessions yet ({} stays empty)",
+            dir.display()
+        ),
+        None => println!("  recording            none: this build does not record sessions yet"),
+    }
+    served??;
+    Ok(())
 }
 
 async fn station(args: StationArgs) -> Result<(), BoxError> {

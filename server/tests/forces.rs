@@ -103,3 +103,34 @@ fn a_steady_push_gives_a_steady_force_growing_with_depth_and_stiffness() {
         );
     }
 }
+
+#[test]
+fn a_steady_sideways_shaft_push_holds_a_steady_force() {
+    // The shaft lying across the front face (axis −x), pushed 3 cm along −z into it
+    // over 2 s, then held 1.5 s. Tissue on the shaft's flanks is dragged harder than
+    // friction allows and slides; it must not flip between held and free.
+    for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
+        let mut scene = Scene::default_scene();
+        scene.force_model.kind = kind;
+        let mut sim = scene.build().unwrap();
+        for _ in 0..60 {
+            sim.tick();
+        }
+        let f = front_point(&sim);
+        let mut hold = Vec::new();
+        for k in 0..210 {
+            let t = k as f64 / 60.0;
+            let z = f.z + 0.02 - 0.03 * (t / 2.0).min(1.0);
+            sim.set_pose(0, Some(pose([f.x + 0.06, f.y, z], [-1.0, 0.0, 0.0])));
+            sim.tick();
+            let stage = sim.forces.as_ref().unwrap();
+            if t >= 2.75 {
+                assert!(stage.models[0].shaft_plane.is_some(), "{kind:?} tick {k}");
+                hold.push(stage.forces[0].force);
+            }
+        }
+        let last = hold.last().unwrap();
+        assert!(last.z > 0.5, "{kind:?}: {last}");
+        assert!(spread(&hold) < 0.03, "{kind:?}: spread {}", spread(&hold));
+    }
+}

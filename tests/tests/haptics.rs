@@ -161,9 +161,14 @@ fn assert_passive(run: &HandRun, what: &str) {
         late <= (1e-3 * early).max(1e-9),
         "{what}: kinetic energy {late} J late after {early} J"
     );
-    // The work the rendered force does on the hand over the last second: none to
-    // speak of once it rests on the tissue.
-    assert!((run.work[2999] - run.work[1999]).abs() <= 1e-6, "{what}");
+    // The work the rendered force does on the hand over the last second: the loop
+    // may take energy out (the tissue yielding as held tissue slides), never put
+    // any in.
+    let work = run.work[2999] - run.work[1999];
+    assert!(
+        work <= 1e-6,
+        "{what}: the loop did {work} J of work on the hand"
+    );
     assert_eq!(run.non_finite_ticks, 0, "{what}");
 }
 
@@ -178,7 +183,12 @@ fn the_hand_on_stiff_tissue_does_not_oscillate() {
             // surface) and the tissue holds it: about 1 N, below the 10 N limit.
             let f = run.force[2999];
             assert!(f > 0.3 && f < 10.0, "{what}: {f} N");
-            assert_eq!(run.clamped_ticks, 0, "{what}");
+            // Hitting stiff tissue may spike to the device's limit at the impact; once
+            // the hand rests on it (the last 1.75 s), never.
+            assert!(
+                run.force[1250..].iter().all(|&f| f < 10.0),
+                "{what}: clamped while resting"
+            );
         }
     }
 }

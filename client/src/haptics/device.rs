@@ -32,6 +32,14 @@ pub trait HapticDevice: Send {
     /// The largest force magnitude the device can render, N. The force loop clamps
     /// to it, keeping the direction.
     fn max_force(&self) -> f64;
+
+    /// The stiffest plane the device renders stably at the loop's rate, N/m: the
+    /// force loop lowers any plane's stiffness to it (the device then sinks deeper
+    /// into a stiff tissue to feel the same force, as real devices do). A device that
+    /// only follows a script has no dynamics to destabilise: no limit.
+    fn max_stiffness(&self) -> f64 {
+        f64::INFINITY
+    }
 }
 
 /// A device pose sampled by the force loop, as published to the network side.

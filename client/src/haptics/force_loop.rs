@@ -160,7 +160,15 @@ impl<D: HapticDevice> ForceLoop<D> {
     pub fn tick(&mut self, t: f64) {
         let (tip, axis) = self.device.pose(t);
         self.poses.write(DevicePose { time: t, tip, axis });
-        if let Some(model) = self.models.take_new() {
+        if let Some(mut model) = self.models.take_new() {
+            let limit = self.device.max_stiffness();
+            for plane in model
+                .tip_plane
+                .iter_mut()
+                .chain(model.shaft_plane.iter_mut())
+            {
+                plane.stiffness = plane.stiffness.min(limit);
+            }
             self.blender.arrive(t, model, &tip, &axis);
             self.stats.record_model();
         }

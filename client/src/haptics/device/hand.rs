@@ -17,17 +17,23 @@ pub struct HandParams {
     pub damping: f64,
     /// The largest force the device renders, N.
     pub max_force: f64,
+    /// The stiffest plane the device renders, N/m (see
+    /// [`HapticDevice::max_stiffness`]).
+    pub max_stiffness: f64,
 }
 
 impl Default for HandParams {
     /// A light grip on a desktop device: 0.15 kg, 200 N/m, 5 N·s/m (damping ratio
-    /// about 0.46), 10 N.
+    /// about 0.46), 10 N, and planes up to 200 kN/m: the mass on a wall of stiffness
+    /// λ, stepped at 1 kHz by the scheme below, is stable while λ < 4m/T² = 600 kN/m;
+    /// a third of that leaves a margin.
     fn default() -> Self {
         HandParams {
             mass: 0.15,
             stiffness: 200.0,
             damping: 5.0,
             max_force: 10.0,
+            max_stiffness: 200_000.0,
         }
     }
 }
@@ -181,6 +187,10 @@ impl HapticDevice for HandDevice {
 
     fn max_force(&self) -> f64 {
         self.params.max_force
+    }
+
+    fn max_stiffness(&self) -> f64 {
+        self.params.max_stiffness
     }
 }
 

@@ -25,7 +25,7 @@
 //! this stage does not tunnel: an instrument crossing the whole liver in one tick finds
 //! every edge it crossed and stops each at its confidence interval.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
 use super::crossing::Crossing;
@@ -106,6 +106,8 @@ pub struct ContactStage {
     current: Vec<Point3<f64>>,
     /// Bit `k` set: held by instrument `k`.
     holders: Vec<u8>,
+    /// How far each held vertex slips at the next tick (Coulomb friction), m.
+    slide: Vec<Vector3<f64>>,
     s: Scratch,
 }
 
@@ -162,6 +164,7 @@ impl ContactStage {
             end: rest.to_vec(),
             current: rest.to_vec(),
             holders: vec![0; n],
+            slide: vec![Vector3::zeros(); n],
             s: Scratch {
                 rel_start: rest.to_vec(),
                 fixed: fixed_mask,
@@ -206,12 +209,15 @@ impl ContactStage {
                 (Some(prev), Some(cur)) => {
                     let r = rigid_motion(&prev, &cur);
                     for &v in &ins.held {
-                        imposed.set(v, r.transform_point(&state.x[v as usize]));
+                        let vi = v as usize;
+                        let slid = state.x[vi] + std::mem::take(&mut self.slide[vi]);
+                        imposed.set(v, r.transform_point(&slid));
                     }
                 }
                 _ => {
                     let bit = 1u8 << k;
                     for &v in &ins.held {
+                        self.slide[v as usize] = Vector3::zeros();
                         self.holders[v as usize] &= !bit;
                         if self.holders[v as usize] == 0 && !self.s.fixed[v as usize] {
                             imposed.release(v);
@@ -297,7 +303,7 @@ impl ContactStage {
                     .filter(|n| (n.point - pose.tip).norm() <= reach);
             }
             ins.report.moved_vertices = self.s.moved.len() as u32;
-            self.hold_and_release(k, ins, state, imposed);
+            self.hold_and_release(k, ins, model, state, imposed);
             self.collect_shaft_edges(ins, surface, state);
         }
         // One more pass for every instrument, tip and push-out, so that what one
@@ -410,28 +416,58 @@ impl ContactStage {
         ins.report.tip = tip.or(ins.report.tip);
     }
 
-    /// Holds the vertices moved for instrument `k`; releases its other held vertices
-    /// that the tissue pulls away from it.
+    /// Holds the vertices moved for instrument `k`; slides those the tissue drags
+    /// harder than friction allows, and releases those it pulls away.
     fn hold_and_release(
         &mut self,
         k: usize,
         ins: &mut Instrument,
+        model: &ElasticModel,
         state: &State,
         imposed: &mut Imposed,
     ) {
         let bit = 1u8 << k;
         let pose = ins.current.expect("only instruments in the body hold");
         let length = ins.active_length();
-        let ins_params = (ins.tip_contact, ins.friction);
+        // Adhesion: a pull-away below a tenth of the mean force on the instrument's
+        // held vertices does not release (see `stays_held`).
+        let mean = ins
+            .held
+            .iter()
+            .map(|&v| state.reaction[v as usize].norm())
+            .sum::<f64>()
+            / ins.held.len().max(1) as f64;
+        let ins_params = (ins.tip_contact, ins.friction, ADHESION * mean);
         let holders = &mut self.holders;
+        let slide = &mut self.slide;
         let s = &self.s;
         ins.held.retain(|&v| {
             let vi = v as usize;
             if s.moved_mark[vi] == s.mark {
                 return true;
             }
-            let keep = stays_held(&state.x[vi], &state.reaction[vi], &pose, length, ins_params);
+            let hold = stays_held(&state.x[vi], &state.reaction[vi], &pose, length, ins_params);
+            let keep = match hold {
+                Hold::Stick => true,
+                Hold::Slip(tangent, excess) => {
+                    // Slide along the instrument until the drag is back on the
+                    // friction cone: the tissue's pull changes by −K_ii δ, so a step
+                    // δ = excess / (t̂·K_ii·t̂) along t̂ takes the excess away (to first
+                    // order; the vertex's neighbours do not move with it).
+                    // The slide is applied with the next tick's rigid motion, before
+                    // the contact steps, so that they keep the surface out of the
+                    // instrument as for any other move.
+                    let kii = model.stiffness.get(v, v).unwrap_or_else(Matrix3::zeros);
+                    let stiffness = tangent.dot(&(kii * tangent.into_inner()));
+                    if stiffness > 0.0 {
+                        slide[vi] = tangent.into_inner() * (excess / stiffness);
+                    }
+                    true
+                }
+                Hold::Release => false,
+            };
             if !keep {
+                slide[vi] = Vector3::zeros();
                 holders[vi] &= !bit;
                 if holders[vi] == 0 && !s.fixed[vi] {
                     imposed.release(v);
@@ -495,26 +531,48 @@ impl ContactStage {
     }
 }
 
-/// Whether a held vertex at `x`, on which the tissue exerts `reaction`, stays held:
-/// Coulomb's law on the instrument's surface.
+/// The pull-away a held vertex withstands, as a fraction of the mean force on its
+/// instrument's held vertices. Without it, vertices on the flanks of a shaft pushed
+/// sideways — where the push-out puts them back on the cylinder with the tissue
+/// pulling them very slightly away — were released and re-taken every other tick,
+/// and the force flickered by 12%. Wet tissue sticks that much; a withdrawing
+/// instrument pulls far harder.
+const ADHESION: f64 = 0.1;
+
+/// What becomes of a held vertex this tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Hold {
+    /// Pressed on and within friction: it stays where it is on the instrument.
+    Stick,
+    /// Pressed on but dragged harder than friction allows: it slides along the
+    /// instrument's surface in direction `t̂` until the drag falls by the excess, N.
+    Slip(nalgebra::Unit<Vector3<f64>>, f64),
+    /// Pulled away: the tissue takes it back.
+    Release,
+}
+
+/// Coulomb's law on the instrument's surface for a held vertex at `x` on which the
+/// tissue exerts `reaction`.
 ///
 /// `m` is the instrument's outward surface normal at the vertex: `−Z` for a vertex at
 /// or beyond the tip of an instrument whose tip presses (§2.5 lays the tip triangle on
 /// the plane ⊥ Z ahead of the tip: a flat end), else the radial direction from the
 /// axis. The tissue pushes the vertex onto the instrument with `N = −reaction·m`; the
-/// rest, `T`, is tangential. The vertex stays held while `N > 0` and `|T| ≤ μ N`:
-/// pulled away, it is released and the tissue relaxes; dragged harder than friction
-/// allows, it is released and slides — the elastic step moves it, the push-out puts it
-/// back on the surface of the instrument, and it is held there. Without the friction
-/// bound a held vertex followed the instrument whatever the tissue's pull, so that a
-/// slid or withdrawn instrument kept dragging tissue it no longer pressed.
+/// rest, `T`, is tangential. `N < −adhesion`: pulled away, released, the tissue
+/// relaxes.
+/// `|T| ≤ μ N`: it sticks. Otherwise it slips along `T` (the return mapping of
+/// friction: slide until the drag is on the cone). Without the friction bound a held
+/// vertex followed the instrument whatever the tissue's pull, so that a slid or
+/// withdrawn instrument kept dragging tissue it no longer pressed; releasing a
+/// slipping vertex instead of sliding it made it flip between held and free every
+/// other tick under a steady sideways push.
 fn stays_held(
     x: &Point3<f64>,
     reaction: &Vector3<f64>,
     pose: &InstrumentPose,
     length: f64,
-    (tip_contact, friction): (bool, f64),
-) -> bool {
+    (tip_contact, friction, adhesion): (bool, f64, f64),
+) -> Hold {
     let c = super::closest::closest_point_axis(x, pose, length);
     let at_tip = c.beta <= 0.0 && (x - pose.tip).dot(&pose.axis) <= 0.0;
     let m = if at_tip && tip_contact {
@@ -522,12 +580,20 @@ fn stays_held(
     } else {
         match c.offset.try_normalize(0.0) {
             Some(m) => m,
-            None => return false,
+            None => return Hold::Release,
         }
     };
     let normal = -reaction.dot(&m);
-    let tangential = (reaction + m * normal).norm();
-    normal > 0.0 && tangential <= friction * normal
+    if normal < -adhesion || (normal <= 0.0 && adhesion == 0.0) {
+        return Hold::Release;
+    }
+    let normal = normal.max(0.0);
+    let tangential = reaction + m * normal;
+    let excess = tangential.norm() - friction * normal;
+    match nalgebra::Unit::try_new(tangential, 0.0) {
+        Some(t) if excess > 0.0 => Hold::Slip(t, excess),
+        _ => Hold::Stick,
+    }
 }
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
