@@ -611,3 +611,58 @@ async fn tls_with_tokens_serves_a_public_address() {
     server.await.unwrap().unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idle_session_closes_itself() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let id = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: Some(1.0),
+            record: None,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    // A station keeps it alive while connected.
+    let (station, _) = join(ch.clone(), None, &id, &["left"]).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    let get = v1::GetSessionRequest {
+        session_id: id.clone(),
+    };
+    assert!(sessions.get_session(get.clone()).await.is_ok());
+    drop(station);
+    // Idle: closed within the timeout and the once-a-second check.
+    let closed = tokio::time::timeout(WAIT, async {
+        loop {
+            if let Err(s) = sessions.get_session(get.clone()).await {
+                return s.code();
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    })
+    .await
+    .unwrap();
+    assert_eq!(closed, Code::NotFound);
+    // A bad timeout is refused.
+    let bad = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: Some(f64::NAN),
+            record: None,
+        })
+        .await;
+    assert_eq!(bad.err().map(|s| s.code()), Some(Code::InvalidArgument));
+    let unknown = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "no-such-scene".into(),
+            idle_timeout_s: None,
+            record: None,
+        })
+        .await;
+    assert_eq!(unknown.err().map(|s| s.code()), Some(Code::NotFound));
+    server.shutdown().await.unwrap();
+}
