@@ -438,6 +438,7 @@ impl ContactStage {
             .sum::<f64>()
             / ins.held.len().max(1) as f64;
         let ins_params = (ins.tip_contact, ins.friction, ADHESION * mean);
+        let radius = ins.radius;
         let holders = &mut self.holders;
         let slide = &mut self.slide;
         let s = &self.s;
@@ -457,12 +458,17 @@ impl ContactStage {
                     // The slide is applied with the next tick's rigid motion, before
                     // the contact steps, so that they keep the surface out of the
                     // instrument as for any other move.
+                    // A slide longer than half the radius is no small creep along
+                    // the instrument but the tissue tearing away from it: let go.
                     let kii = model.stiffness.get(v, v).unwrap_or_else(Matrix3::zeros);
                     let stiffness = tangent.dot(&(kii * tangent.into_inner()));
-                    if stiffness > 0.0 {
-                        slide[vi] = tangent.into_inner() * (excess / stiffness);
+                    let step = excess / stiffness;
+                    if stiffness > 0.0 && step <= MAX_SLIDE * radius {
+                        slide[vi] = tangent.into_inner() * step;
+                        true
+                    } else {
+                        false
                     }
-                    true
                 }
                 Hold::Release => false,
             };
@@ -538,6 +544,9 @@ impl ContactStage {
 /// and the force flickered by 12%. Wet tissue sticks that much; a withdrawing
 /// instrument pulls far harder.
 const ADHESION: f64 = 0.1;
+
+/// The longest slide of a held vertex in one tick, as a fraction of the radius.
+const MAX_SLIDE: f64 = 0.5;
 
 /// What becomes of a held vertex this tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
