@@ -96,6 +96,15 @@ pub async fn pump<M: Wrap>(
     }
     loop {
         tokio::select! {
+            // The session's end first: when it closes, the station's reader stops too
+            // and `done` fires at the same moment; the client must still get the
+            // status that says why.
+            biased;
+            _ = closing.changed() => {
+                let reason: String = closing.borrow().clone().unwrap_or_default();
+                let _ = tx.send(Err(Status::unavailable(format!("session closed: {reason}")))).await;
+                break;
+            }
             changed = frames.changed() => {
                 if changed.is_err() {
                     break;
@@ -143,12 +152,13 @@ pub async fn pump<M: Wrap>(
                 }
                 Err(broadcast::error::RecvError::Closed) => break,
             },
-            _ = closing.changed() => {
-                let reason: String = closing.borrow().clone().unwrap_or_default();
-                let _ = tx.send(Err(Status::unavailable(format!("session closed: {reason}")))).await;
+            _ = done.changed() => {
+                let closed = closing.borrow().clone();
+                if let Some(reason) = closed {
+                    let _ = tx.send(Err(Status::unavailable(format!("session closed: {reason}")))).await;
+                }
                 break;
             }
-            _ = done.changed() => break,
             _ = tx.closed() => break,
         }
     }
