@@ -73,3 +73,5 @@ pub fn sim_log_time(start_ns: u64, sim_time: f64) -> u64 {
     start_ns.saturating_add((sim_time.max(0.0) * 1e9).round() as u64)
 }
 
+#[cfg(test)]
+mod tests;
