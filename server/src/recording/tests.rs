@@ -616,22 +616,21 @@ fn a_recorded_session_writes_its_ticks_poses_and_events() {
 }
 
 #[test]
-fn a_session_whose_recording_fails_goes_on_and_says_so() {
+fn a_session_whose_recording_fails_goes_on_without_it() {
     let dir = temp();
     let config = SessionConfig {
         idle_timeout: None,
         recordings: Some(dir.path().join("missing")),
     };
     let session = Session::start("s4".into(), Scene::default_scene(), &config).unwrap();
-    let mut events = session.events();
-    wait_ticks(&session, 3);
-    let error = loop {
-        let e = events.blocking_recv().unwrap();
-        if e.kind == v1::EventKind::RecorderError as i32 {
-            break e;
-        }
-    };
-    assert!(error.detail.contains("missing"), "{}", error.detail);
+    // The recorder thread fails at once; the RECORDER_ERROR event it causes may
+    // come before anyone could subscribe (the recorder test checks the report),
+    // so this checks what stays: the error, the count, no file named.
+    let recorder = session.recorder().unwrap();
+    while recorder.error().is_none() {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(recorder.error().unwrap().contains("missing"));
     let tick = session
         .stats
         .tick
