@@ -4,5 +4,6 @@
 pub mod engine;
 pub mod export;
 pub mod headless;
+pub mod recording;
 pub mod service;
 pub mod session;

@@ -83,7 +83,10 @@ impl Registry {
             .ok_or_else(|| Status::not_found(format!("no scene `{name}`")))?
             .clone();
         let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
-        let config = SessionConfig { idle_timeout };
+        let config = SessionConfig {
+            idle_timeout,
+            recordings: None,
+        };
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
         let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))

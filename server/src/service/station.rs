@@ -336,6 +336,7 @@ fn accept_pose(
                     station,
                 },
             );
+            session.record_pose(p);
             session.stats.poses_accepted.fetch_add(1, Ordering::Relaxed);
             Ok(())
         }

@@ -3,7 +3,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Weak};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
@@ -11,6 +11,7 @@ use tokio::sync::{broadcast, watch};
 use super::describe::{contact_state, instrument_state, surface_positions};
 use super::{Frame, PoseIn, Session, SessionStats};
 use crate::engine::scene::Simulation;
+use crate::recording::{Item, Recorder, Report};
 
 /// What the thread owns.
 pub(super) struct Mechanics {
@@ -21,15 +22,49 @@ pub(super) struct Mechanics {
     pub stats: Arc<SessionStats>,
     pub stop: Arc<AtomicBool>,
     pub session: Weak<Session>,
+    pub recorder: Option<Arc<Recorder>>,
 }
 
 pub(super) fn spawn(m: Mechanics) -> std::io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("mechanics".into())
-        .spawn(move || m.run())
+        .spawn(move || {
+            let recorder = m.recorder.clone();
+            m.run();
+            // The ticks are over: the recorder writes what it holds and closes the file.
+            if let Some(r) = recorder {
+                let _ = r.finish();
+            }
+        })
 }
 
 impl Mechanics {
+    /// Publishes an event and records it.
+    fn emit(&self, event: v1::Event) {
+        if let Some(r) = &self.recorder {
+            let report = r.offer(Item::Event {
+                event: event.clone(),
+                wall: SystemTime::now(),
+            });
+            self.report(report);
+        }
+        let _ = self.events.send(event);
+    }
+
+    /// Tells the live streams what the recorder reported.
+    fn report(&self, report: Option<Report>) {
+        if let Some(report) = report {
+            let _ = self.events.send(v1::Event {
+                tick: self.sim.tick,
+                sim_time_s: self.sim.time,
+                kind: report.kind() as i32,
+                station_id: None,
+                instrument: None,
+                detail: report.detail(),
+            });
+        }
+    }
+
     /// Ticks at the scene's rate until stopped: deadlines are `start + k·dt`; a tick
     /// that starts more than a period late counts as missed, and the schedule
     /// resynchronises instead of bursting to catch up.
@@ -84,7 +119,7 @@ impl Mechanics {
                     } else {
                         v1::EventKind::ContactEnded
                     };
-                    let _ = self.events.send(v1::Event {
+                    self.emit(v1::Event {
                         tick: self.sim.tick,
                         sim_time_s: self.sim.time,
                         kind: kind as i32,
@@ -95,7 +130,15 @@ impl Mechanics {
                 }
                 contact[k] = now;
             }
-            self.frames.send_replace(Arc::new(frame));
+            let frame = Arc::new(frame);
+            if let Some(r) = &self.recorder {
+                let report = r.offer(Item::Frame {
+                    frame: frame.clone(),
+                    wall: SystemTime::now(),
+                });
+                self.report(report);
+            }
+            self.frames.send_replace(frame);
             self.stats.tick.store(self.sim.tick, Ordering::Relaxed);
             self.stats
                 .sim_time_bits

@@ -8,12 +8,18 @@
 //! sends the newest it has not sent, so a slow client skips frames and never delays
 //! the tick — and events on a `broadcast` channel. The roster (who holds which
 //! instrument) is behind a mutex only the network side takes.
+//!
+//! A recorded session also hands every tick's frame, every event and every accepted
+//! pose to its [`Recorder`], which writes them on a thread of its own; handing over
+//! never waits, and what the recorder leaves out or fails on is published as an
+//! event. The mechanics thread finishes the file when it stops.
 
 pub mod describe;
 pub mod input;
 mod mechanics;
 
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -23,6 +29,7 @@ use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
 use crate::engine::scene::{Scene, SceneError};
+use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
 /// The state of the liver and the instruments after one tick.
@@ -41,6 +48,8 @@ pub struct Frame {
 pub struct SessionConfig {
     /// Close after this long with no station and no observer; `None`: never.
     pub idle_timeout: Option<Duration>,
+    /// Directory to record the session in (one MCAP file); `None`: not recorded.
+    pub recordings: Option<PathBuf>,
 }
 
 /// Counters the mechanics thread and the streams keep.
@@ -86,6 +95,7 @@ pub struct Session {
     closing: watch::Sender<Option<String>>,
     stop: Arc<AtomicBool>,
     thread: Mutex<Option<JoinHandle<()>>>,
+    recorder: Option<Arc<Recorder>>,
 }
 
 /// Events a slow stream may fall behind by before it skips (and is told so).
@@ -114,9 +124,29 @@ impl Session {
         let (closing, _) = watch::channel(None);
         let stats = Arc::new(SessionStats::default());
         let stop = Arc::new(AtomicBool::new(false));
+        let created_at = SystemTime::now();
+        let recorder = match &config.recordings {
+            Some(dir) => {
+                let path = dir.join(recording_file_name(&id, &scene.name, created_at));
+                let header = SessionHeader {
+                    session_id: id.clone(),
+                    scene_name: scene.name.clone(),
+                    scene_toml: scene.text.clone(),
+                    start: created_at,
+                    description: description.clone(),
+                };
+                let recorder = Recorder::start(path, header).map_err(|e| SceneError::Invalid {
+                    scene: scene.source.clone(),
+                    path: "recording".into(),
+                    message: format!("cannot start the recorder thread: {e}"),
+                })?;
+                Some(Arc::new(recorder))
+            }
+            None => None,
+        };
         let session = Arc::new(Session {
             id,
-            created_at: SystemTime::now(),
+            created_at,
             description,
             workspace,
             idle_timeout: config.idle_timeout,
@@ -131,6 +161,7 @@ impl Session {
             closing,
             stop: stop.clone(),
             thread: Mutex::new(None),
+            recorder: recorder.clone(),
             scene,
         });
         let weak = Arc::downgrade(&session);
@@ -142,6 +173,7 @@ impl Session {
             stats,
             stop,
             session: weak,
+            recorder,
         })
         .map_err(|e| SceneError::Invalid {
             scene: session.scene.source.clone(),
@@ -207,6 +239,49 @@ impl Session {
         slot.write(Some(pose));
     }
 
+    /// Hands a pose the station service accepted to the recorder, stamped now.
+    pub fn record_pose(&self, pose: &v1::DevicePose) {
+        if let Some(r) = &self.recorder {
+            let report = r.offer(Item::Pose {
+                received: SystemTime::now(),
+                pose: pose.clone(),
+            });
+            self.report(report);
+        }
+    }
+
+    /// The session's recorder, when it is recorded.
+    pub fn recorder(&self) -> Option<&Recorder> {
+        self.recorder.as_deref()
+    }
+
+    /// Publishes what the recorder asks to tell (to the live streams only: the
+    /// recorder notes its own gaps in the file).
+    fn report(&self, report: Option<Report>) {
+        if let Some(report) = report {
+            let _ = self
+                .events
+                .send(self.event(report.kind(), None, None, report.detail()));
+        }
+    }
+
+    fn event(
+        &self,
+        kind: v1::EventKind,
+        station: Option<u64>,
+        instrument: Option<String>,
+        detail: String,
+    ) -> v1::Event {
+        v1::Event {
+            tick: self.stats.tick.load(Ordering::Relaxed),
+            sim_time_s: f64::from_bits(self.stats.sim_time_bits.load(Ordering::Relaxed)),
+            kind: kind as i32,
+            station_id: station,
+            instrument,
+            detail,
+        }
+    }
+
     /// The newest frame and its channel.
     pub fn frames(&self) -> watch::Receiver<Arc<Frame>> {
         self.frames.clone()
@@ -217,7 +292,7 @@ impl Session {
         self.events.subscribe()
     }
 
-    /// Publishes an event from the network side.
+    /// Publishes an event from the network side, and records it.
     pub fn publish(
         &self,
         kind: v1::EventKind,
@@ -225,14 +300,15 @@ impl Session {
         instrument: Option<String>,
         detail: String,
     ) {
-        let _ = self.events.send(v1::Event {
-            tick: self.stats.tick.load(Ordering::Relaxed),
-            sim_time_s: f64::from_bits(self.stats.sim_time_bits.load(Ordering::Relaxed)),
-            kind: kind as i32,
-            station_id: station,
-            instrument,
-            detail,
-        });
+        let event = self.event(kind, station, instrument, detail);
+        if let Some(r) = &self.recorder {
+            let report = r.offer(Item::Event {
+                event: event.clone(),
+                wall: SystemTime::now(),
+            });
+            self.report(report);
+        }
+        let _ = self.events.send(event);
     }
 
     /// Resolves to the reason once the session is closing.
@@ -297,7 +373,12 @@ impl Session {
                 .collect(),
             observer_count: roster.observers,
             idle_timeout_s: self.idle_timeout.map(|d| d.as_secs_f64()),
-            recording_file: None,
+            recording_file: self
+                .recorder
+                .as_ref()
+                .filter(|r| r.error().is_none() || r.created_file())
+                .and_then(|r| r.path().file_name())
+                .map(|f| f.to_string_lossy().into_owned()),
             missed_deadlines: s.missed_deadlines.load(Ordering::Relaxed),
             tick_time_p50_ms: bits(&s.tick_p50_bits),
             tick_time_p99_ms: bits(&s.tick_p99_bits),
@@ -311,6 +392,25 @@ impl Session {
         self.stats.connected.fetch_add(1, Ordering::Relaxed);
         Connected(self.clone())
     }
+}
+
+/// `<session id>-<scene>-<unix time s>.mcap`, with anything but letters, digits,
+/// `-` and `_` in the scene's name replaced by `_`.
+pub fn recording_file_name(id: &str, scene: &str, created_at: SystemTime) -> String {
+    let scene: String = scene
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let unix = created_at
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    format!("{id}-{scene}-{unix}.mcap")
 }
 
 /// A stream connected to a session (see [`Session::connect`]).

@@ -36,6 +36,9 @@ pub struct Scene {
     /// Where the scene came from, for messages.
     #[serde(skip)]
     pub source: String,
+    /// The TOML text the scene was parsed from, as recordings keep it.
+    #[serde(skip)]
+    pub text: String,
 }
 
 /// The volume mesh.
@@ -242,6 +245,7 @@ impl Scene {
         })?;
         scene.base_dir = base_dir.map(Path::to_path_buf);
         scene.source = source.to_string();
+        scene.text = text.to_string();
         scene.validate()?;
         Ok(scene)
     }

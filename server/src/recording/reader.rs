@@ -1,0 +1,341 @@
+//! Reading a recording back: open it, check that it is a laparo recording of a
+//! version this server knows, and decode its messages with the contract's types.
+//!
+//! A file that is not MCAP, is corrupt or was cut short gets a [`ReadError`] naming
+//! the file and what is wrong; nothing here panics on bad input. A file cut short
+//! (a killed server, or a session still running) has no summary: the reader says so
+//! and [`super::recover`] rewrites it into a complete one.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::path::Path;
+
+use laparo_proto::v1;
+use mcap::records::{MessageHeader, Record};
+use mcap::{MAGIC, Summary};
+
+use super::records::{Records, chunk_records};
+
+use super::{
+    FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE,
+    TOPIC_SURFACE,
+};
+
+/// Why a recording cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    #[error("cannot read {file}: {source}")]
+    Io {
+        file: String,
+        source: std::io::Error,
+    },
+    #[error("{file} is not an MCAP file (it does not start with the MCAP magic bytes)")]
+    NotMcap { file: String },
+    #[error(
+        "{file} ends without its summary: it was cut short (a stopped server) or is still \
+         being written; recovering it rewrites it into a complete file"
+    )]
+    Truncated { file: String },
+    #[error("{file} is a corrupt MCAP file: {message}")]
+    Corrupt { file: String, message: String },
+    #[error("{file} is not a laparo recording: {message}")]
+    NotARecording { file: String, message: String },
+    #[error(
+        "{file} is a laparo recording of format version `{found}`, which this server does \
+         not read (it reads version {FORMAT_VERSION})"
+    )]
+    UnsupportedVersion { file: String, found: String },
+    #[error("{file}: message {sequence} on {topic} does not decode: {message}")]
+    Decode {
+        file: String,
+        topic: String,
+        sequence: u32,
+        message: String,
+    },
+}
+
+/// What the `laparo.scene` metadata record says.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordingMeta {
+    pub format_version: String,
+    pub session_id: String,
+    pub scene: String,
+    /// When the session started, ns since the Unix epoch.
+    pub start_unix_ns: u64,
+    /// The scene's TOML text.
+    pub scene_toml: String,
+}
+
+/// A decoded message of a recording.
+///
+/// Unboxed like the contract's own oneofs: a message is decoded, looked at and
+/// dropped, and boxing would cost an allocation for each.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Recorded {
+    Scene(v1::SceneDescription),
+    Pose(v1::DevicePose),
+    Surface(v1::SurfaceFrame),
+    Instrument(v1::InstrumentState),
+    Event(v1::Event),
+}
+
+/// A decoded message with its times, ns since the Unix epoch.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stamped<T> {
+    pub log_time: u64,
+    pub publish_time: u64,
+    pub message: T,
+}
+
+/// An open recording, read whole into memory.
+pub struct Recording {
+    file: String,
+    bytes: Vec<u8>,
+    meta: RecordingMeta,
+    summary: Summary,
+}
+
+impl std::fmt::Debug for Recording {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recording")
+            .field("file", &self.file)
+            .field("meta", &self.meta)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Recording {
+    /// Reads and checks the recording at `path`.
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        Self::from_bytes(file, bytes)
+    }
+
+    /// Checks a recording held in memory; `file` names it in errors.
+    pub fn from_bytes(file: String, bytes: Vec<u8>) -> Result<Self, ReadError> {
+        if !bytes.starts_with(MAGIC) {
+            return Err(ReadError::NotMcap { file });
+        }
+        if !bytes.ends_with(MAGIC) {
+            return Err(ReadError::Truncated { file });
+        }
+        let corrupt = |e: mcap::McapError| ReadError::Corrupt {
+            file: file.clone(),
+            message: e.to_string(),
+        };
+        let summary = Summary::read(&bytes)
+            .map_err(corrupt)?
+            .ok_or_else(|| ReadError::Truncated { file: file.clone() })?;
+        let not_ours = |message: String| ReadError::NotARecording {
+            file: file.clone(),
+            message,
+        };
+        let index = summary
+            .metadata_indexes
+            .iter()
+            .find(|m| m.name == METADATA_NAME)
+            .ok_or_else(|| not_ours(format!("it has no `{METADATA_NAME}` metadata record")))?;
+        let mut fields = mcap::read::metadata(&bytes, index)
+            .map_err(corrupt)?
+            .metadata;
+        let mut take = |key: &str| {
+            fields
+                .remove(key)
+                .ok_or_else(|| not_ours(format!("its `{METADATA_NAME}` metadata has no `{key}`")))
+        };
+        let format_version = take("format_version")?;
+        if format_version != FORMAT_VERSION {
+            return Err(ReadError::UnsupportedVersion {
+                file,
+                found: format_version,
+            });
+        }
+        let start = take("start_unix_ns")?;
+        let meta = RecordingMeta {
+            format_version,
+            session_id: take("session_id")?,
+            scene: take("scene")?,
+            start_unix_ns: start
+                .parse()
+                .map_err(|_| not_ours(format!("its start time `{start}` is not a number of ns")))?,
+            scene_toml: take("scene_toml")?,
+        };
+        Ok(Recording {
+            file,
+            bytes,
+            meta,
+            summary,
+        })
+    }
+
+    pub fn meta(&self) -> &RecordingMeta {
+        &self.meta
+    }
+
+    /// The file's MCAP summary (channels, schemas, statistics, indexes).
+    pub fn mcap_summary(&self) -> &Summary {
+        &self.summary
+    }
+
+    /// Messages per topic, from the file's statistics.
+    pub fn message_counts(&self) -> BTreeMap<String, u64> {
+        let mut counts = BTreeMap::new();
+        if let Some(stats) = &self.summary.stats {
+            for (id, n) in &stats.channel_message_counts {
+                if let Some(c) = self.summary.channels.get(id) {
+                    *counts.entry(c.topic.clone()).or_default() += n;
+                }
+            }
+        }
+        counts
+    }
+
+    /// Every message in file order, decoded. Messages of topics this version does
+    /// not know are skipped; reading ends at the first error.
+    pub fn messages(&self) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> + '_ {
+        self.raw().filter_map(move |m| {
+            let (topic, header, data) = match m {
+                Ok(m) => m,
+                Err(e) => return Some(Err(e)),
+            };
+            let decoded = match topic.as_str() {
+                TOPIC_SCENE => self.decode(&topic, &header, &data).map(Recorded::Scene),
+                TOPIC_POSES => self.decode(&topic, &header, &data).map(Recorded::Pose),
+                TOPIC_SURFACE => self.decode(&topic, &header, &data).map(Recorded::Surface),
+                TOPIC_INSTRUMENTS => self
+                    .decode(&topic, &header, &data)
+                    .map(Recorded::Instrument),
+                TOPIC_EVENTS => self.decode(&topic, &header, &data).map(Recorded::Event),
+                _ => return None,
+            };
+            Some(decoded.map(|message| Stamped {
+                log_time: header.log_time,
+                publish_time: header.publish_time,
+                message,
+            }))
+        })
+    }
+
+    /// The messages of one topic, decoded as `T`, in file order.
+    pub fn topic<T: prost::Message + Default>(
+        &self,
+        topic: &str,
+    ) -> Result<Vec<Stamped<T>>, ReadError> {
+        let mut out = Vec::new();
+        for m in self.raw() {
+            let (t, header, data) = m?;
+            if t == topic {
+                out.push(Stamped {
+                    log_time: header.log_time,
+                    publish_time: header.publish_time,
+                    message: self.decode(&t, &header, &data)?,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// Every message in file order, undecoded, with its topic.
+    fn raw(
+        &self,
+    ) -> impl Iterator<Item = Result<(String, MessageHeader, Vec<u8>), ReadError>> + '_ {
+        let mut records = Records::new(&self.bytes);
+        let mut pending: VecDeque<Record<'static>> = VecDeque::new();
+        let mut done = false;
+        std::iter::from_fn(move || {
+            loop {
+                if done {
+                    return None;
+                }
+                let record = match pending.pop_front() {
+                    Some(r) => r,
+                    None => match records.next() {
+                        None => return None,
+                        Some(Err(e)) => {
+                            done = true;
+                            return Some(Err(self.corrupt(e)));
+                        }
+                        Some(Ok((_, Record::Chunk { header, data }))) => {
+                            match chunk_records(&header, &data) {
+                                Ok(r) => pending.extend(r),
+                                Err(e) => {
+                                    done = true;
+                                    return Some(Err(self.corrupt(e)));
+                                }
+                            }
+                            continue;
+                        }
+                        Some(Ok((_, Record::DataEnd(_) | Record::Footer(_)))) => {
+                            done = true;
+                            return None;
+                        }
+                        Some(Ok((_, r))) => r.into_owned(),
+                    },
+                };
+                if let Record::Message { header, data } = record {
+                    let Some(channel) = self.summary.channels.get(&header.channel_id) else {
+                        done = true;
+                        return Some(Err(self.corrupt(format!(
+                            "message {} is on channel {}, which the summary does not list",
+                            header.sequence, header.channel_id
+                        ))));
+                    };
+                    return Some(Ok((channel.topic.clone(), header, data.into_owned())));
+                }
+            }
+        })
+    }
+
+    /// The recorded scene.
+    pub fn scene(&self) -> Result<v1::SceneDescription, ReadError> {
+        self.topic(TOPIC_SCENE)?
+            .into_iter()
+            .next()
+            .map(|s| s.message)
+            .ok_or_else(|| ReadError::NotARecording {
+                file: self.file.clone(),
+                message: format!("it has no message on {TOPIC_SCENE}"),
+            })
+    }
+
+    pub fn poses(&self) -> Result<Vec<Stamped<v1::DevicePose>>, ReadError> {
+        self.topic(TOPIC_POSES)
+    }
+
+    pub fn surfaces(&self) -> Result<Vec<Stamped<v1::SurfaceFrame>>, ReadError> {
+        self.topic(TOPIC_SURFACE)
+    }
+
+    pub fn instrument_states(&self) -> Result<Vec<Stamped<v1::InstrumentState>>, ReadError> {
+        self.topic(TOPIC_INSTRUMENTS)
+    }
+
+    pub fn events(&self) -> Result<Vec<Stamped<v1::Event>>, ReadError> {
+        self.topic(TOPIC_EVENTS)
+    }
+
+    fn decode<T: prost::Message + Default>(
+        &self,
+        topic: &str,
+        header: &MessageHeader,
+        data: &[u8],
+    ) -> Result<T, ReadError> {
+        T::decode(data).map_err(|e| ReadError::Decode {
+            file: self.file.clone(),
+            topic: topic.to_string(),
+            sequence: header.sequence,
+            message: e.to_string(),
+        })
+    }
+
+    fn corrupt(&self, message: String) -> ReadError {
+        ReadError::Corrupt {
+            file: self.file.clone(),
+            message,
+        }
+    }
+}

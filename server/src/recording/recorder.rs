@@ -1,0 +1,329 @@
+//! The recorder thread: owns a session's [`McapSink`] and is fed through a bounded
+//! channel, so that writing, compressing and disk stalls never reach the mechanics
+//! thread.
+//!
+//! The session side only ever calls [`Recorder::offer`], which never waits: when
+//! the channel is full the item is left out, counted in [`RecorderStats::dropped`],
+//! and the first drop of a lagging spell comes back as a [`Report`] for the session
+//! to publish as `EVENT_KIND_RECORDER_LAGGING`; the recorder thread also writes a
+//! lagging event into the file where the gap is, so a reviewer sees it. When the
+//! file cannot be created or written (unwritable directory, disk full) the thread
+//! stops, counts the error and the next offer reports it once
+//! (`EVENT_KIND_RECORDER_ERROR`); the session goes on unrecorded.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Instant, SystemTime};
+
+use laparo_proto::v1;
+
+use super::writer::{FLUSH_INTERVAL, McapSink, SessionHeader};
+use crate::session::Frame;
+
+/// Items the channel holds: several seconds of ticks and poses at the rates a scene
+/// and a station reach; a tick's frame is an `Arc`, so a full channel is small.
+pub const CHANNEL_CAPACITY: usize = 4096;
+
+/// Something to record.
+#[derive(Debug)]
+pub enum Item {
+    /// A pose the station service accepted, with when it was received.
+    Pose {
+        received: SystemTime,
+        pose: v1::DevicePose,
+    },
+    /// One tick's frame, with when it was published; encoded on the recorder
+    /// thread.
+    Frame { frame: Arc<Frame>, wall: SystemTime },
+    /// An event of the session, with when it happened.
+    Event { event: v1::Event, wall: SystemTime },
+}
+
+impl Item {
+    fn describe(&self) -> String {
+        match self {
+            Item::Pose { pose, .. } => format!("pose {} of `{}`", pose.sequence, pose.instrument),
+            Item::Frame { frame, .. } => format!("frame of tick {}", frame.tick),
+            Item::Event { event, .. } => format!("event at tick {}", event.tick),
+        }
+    }
+}
+
+/// What [`Recorder::offer`] asks the session to tell its clients.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Report {
+    /// The channel was full: the item described was left out of the recording.
+    Lagging { dropped_total: u64, detail: String },
+    /// The recorder stopped on an error; nothing more is recorded.
+    Failed { error: String },
+}
+
+impl Report {
+    pub fn kind(&self) -> v1::EventKind {
+        match self {
+            Report::Lagging { .. } => v1::EventKind::RecorderLagging,
+            Report::Failed { .. } => v1::EventKind::RecorderError,
+        }
+    }
+
+    /// The event's detail.
+    pub fn detail(&self) -> String {
+        match self {
+            Report::Lagging {
+                dropped_total,
+                detail,
+            } => format!(
+                "the recorder fell behind: {detail} left out of the recording \
+                 ({dropped_total} items left out so far)"
+            ),
+            Report::Failed { error } => {
+                format!("the recorder stopped: {error}; the session goes on unrecorded")
+            }
+        }
+    }
+}
+
+/// Counters of a recorder, readable while it runs.
+#[derive(Debug, Default)]
+pub struct RecorderStats {
+    /// Items handed to the recorder thread.
+    pub sent: AtomicU64,
+    /// Items left out because the channel was full.
+    pub dropped: AtomicU64,
+    /// Errors that stopped the recorder (0 or 1).
+    pub errors: AtomicU64,
+    /// Messages written to the file.
+    pub written: AtomicU64,
+}
+
+/// State the recorder thread shares with the session side.
+#[derive(Debug, Default)]
+struct Shared {
+    stats: RecorderStats,
+    error: Mutex<Option<String>>,
+    /// Whether the file was created.
+    created: AtomicBool,
+}
+
+/// Least time between two lagging reports, ms: a recorder that keeps falling
+/// behind and catching up is reported once a second, not once a tick.
+const LAG_REPORT_INTERVAL_MS: u64 = 1000;
+
+enum Msg {
+    Item(Item),
+    Finish,
+}
+
+/// A session's recorder: the sending side of the channel and the thread's handle.
+pub struct Recorder {
+    tx: SyncSender<Msg>,
+    path: PathBuf,
+    shared: Arc<Shared>,
+    created: Instant,
+    /// ms since `created` of the last lagging report, plus one; 0: never.
+    last_lag_report: AtomicU64,
+    /// Inside a spell of drops already reported.
+    lagging: AtomicBool,
+    error_reported: AtomicBool,
+    finished: AtomicBool,
+    thread: Mutex<Option<JoinHandle<()>>>,
+}
+
+impl Recorder {
+    /// Starts recording to `path` (created anew) on a thread of its own. Fails only
+    /// when the thread cannot start: a file that cannot be created is reported
+    /// through [`offer`](Self::offer) like any later error.
+    pub fn start(path: PathBuf, header: SessionHeader) -> std::io::Result<Self> {
+        Self::with_capacity(path, header, CHANNEL_CAPACITY)
+    }
+
+    /// [`start`](Self::start) with a channel of `capacity` items.
+    pub fn with_capacity(
+        path: PathBuf,
+        header: SessionHeader,
+        capacity: usize,
+    ) -> std::io::Result<Self> {
+        let (tx, rx) = sync_channel(capacity);
+        let shared = Arc::new(Shared::default());
+        let thread = {
+            let (shared, path) = (shared.clone(), path.clone());
+            std::thread::Builder::new()
+                .name("recorder".into())
+                .spawn(move || run(&path, &header, &rx, &shared))?
+        };
+        Ok(Recorder {
+            tx,
+            path,
+            shared,
+            created: Instant::now(),
+            last_lag_report: AtomicU64::new(0),
+            lagging: AtomicBool::new(false),
+            error_reported: AtomicBool::new(false),
+            finished: AtomicBool::new(false),
+            thread: Mutex::new(Some(thread)),
+        })
+    }
+
+    /// Hands `item` to the recorder thread without waiting. `Some` when the
+    /// session should tell its clients something (see [`Report`]).
+    pub fn offer(&self, item: Item) -> Option<Report> {
+        if self.finished.load(Ordering::Relaxed) {
+            return None;
+        }
+        let stats = &self.shared.stats;
+        match self.tx.try_send(Msg::Item(item)) {
+            Ok(()) => {
+                stats.sent.fetch_add(1, Ordering::Relaxed);
+                self.lagging.store(false, Ordering::Relaxed);
+                None
+            }
+            Err(TrySendError::Full(Msg::Item(item))) => {
+                let dropped_total = stats.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                if self.lagging.swap(true, Ordering::Relaxed) {
+                    return None;
+                }
+                let now = self.created.elapsed().as_millis() as u64 + 1;
+                let last = self.last_lag_report.load(Ordering::Relaxed);
+                if last != 0 && now - last < LAG_REPORT_INTERVAL_MS {
+                    return None;
+                }
+                self.last_lag_report.store(now, Ordering::Relaxed);
+                Some(Report::Lagging {
+                    dropped_total,
+                    detail: item.describe(),
+                })
+            }
+            Err(_) => {
+                if self.error_reported.swap(true, Ordering::Relaxed) {
+                    return None;
+                }
+                Some(Report::Failed {
+                    error: self
+                        .error()
+                        .unwrap_or_else(|| "the recorder thread ended".into()),
+                })
+            }
+        }
+    }
+
+    /// The recording's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether the file was created (it may have failed later).
+    pub fn created_file(&self) -> bool {
+        self.shared.created.load(Ordering::Relaxed)
+    }
+
+    pub fn stats(&self) -> &RecorderStats {
+        &self.shared.stats
+    }
+
+    /// The error that stopped the recorder, if any.
+    pub fn error(&self) -> Option<String> {
+        self.shared
+            .error
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Writes what the channel holds, then the file's summary and footer, and waits
+    /// for the thread. Later offers are ignored. Idempotent. Returns the error that
+    /// stopped the recorder, if any.
+    pub fn finish(&self) -> Result<(), String> {
+        if !self.finished.swap(true, Ordering::Relaxed) {
+            // Waits while the channel is full: closing is not on the tick's path.
+            let _ = self.tx.send(Msg::Finish);
+        }
+        let thread = self.thread.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let Some(t) = thread {
+            let _ = t.join();
+        }
+        self.error().map_or(Ok(()), Err)
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        let _ = self.finish();
+    }
+}
+
+/// The thread: create the file, write items as they come, close a chunk at least
+/// every [`FLUSH_INTERVAL`], finish on [`Msg::Finish`] or when the sender is gone.
+fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared) {
+    let fail = |what: &str, e: &dyn std::fmt::Display| {
+        let message = format!("{what} {}: {e}", path.display());
+        tracing::error!(session = %header.session_id, "recorder: {message}");
+        shared.stats.errors.fetch_add(1, Ordering::Relaxed);
+        *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(message);
+    };
+    let mut sink = match McapSink::create(path, header) {
+        Ok(sink) => sink,
+        Err(e) => return fail("cannot create", &e),
+    };
+    shared.created.store(true, Ordering::Relaxed);
+    let mut seen_dropped = 0;
+    let mut last = (0u64, 0.0f64);
+    loop {
+        let item = match rx.recv_timeout(FLUSH_INTERVAL) {
+            Ok(Msg::Item(item)) => Some(item),
+            Ok(Msg::Finish) | Err(RecvTimeoutError::Disconnected) => break,
+            Err(RecvTimeoutError::Timeout) => None,
+        };
+        let written = sink.messages;
+        let result = (|| {
+            if let Some(item) = item {
+                match &item {
+                    Item::Frame { frame, .. } => last = (frame.tick, frame.sim_time),
+                    Item::Event { event, .. } => last = (event.tick, event.sim_time_s),
+                    Item::Pose { .. } => {}
+                }
+                let dropped = shared.stats.dropped.load(Ordering::Relaxed);
+                if dropped > seen_dropped {
+                    let gap = v1::Event {
+                        tick: last.0,
+                        sim_time_s: last.1,
+                        kind: v1::EventKind::RecorderLagging as i32,
+                        station_id: None,
+                        instrument: None,
+                        detail: format!(
+                            "{} items left out of the recording before this point",
+                            dropped - seen_dropped
+                        ),
+                    };
+                    seen_dropped = dropped;
+                    sink.write_event(&gap, SystemTime::now())?;
+                }
+                match &item {
+                    Item::Pose { received, pose } => sink.write_pose(*received, pose)?,
+                    Item::Frame { frame, wall } => sink.write_frame(frame, *wall)?,
+                    Item::Event { event, wall } => sink.write_event(event, *wall)?,
+                }
+            }
+            sink.flush_if_due()
+        })();
+        shared
+            .stats
+            .written
+            .fetch_add(sink.messages - written, Ordering::Relaxed);
+        if let Err(e) = result {
+            return fail("cannot write", &e);
+        }
+    }
+    let result = sink.finish().and_then(|w: BufWriter<File>| {
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        Ok(())
+    });
+    if let Err(e) = result {
+        fail("cannot finish", &e);
+    }
+}

@@ -1,0 +1,651 @@
+//! Recordings written and read back: a scripted simulation through the recorder, a
+//! recorded session, files cut short and recovered, and files that are not
+//! recordings.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use laparo_proto::force::wire::to_pose;
+use laparo_proto::v1;
+use nalgebra::{Point3, Unit};
+use prost::Message;
+
+use super::writer::McapSink;
+use super::*;
+use crate::engine::contact::pose::InstrumentPose;
+use crate::engine::scene::{Scene, Simulation};
+use crate::session::describe::{description, instrument_state, surface_positions};
+use crate::session::{Frame, Session, SessionConfig};
+
+/// The default scene's left instrument pushing straight down into the top of the
+/// liver, 1 mm a tick from 1 cm above it.
+struct Script {
+    sim: Simulation,
+    scene: Scene,
+    top: Point3<f64>,
+    trocar: Point3<f64>,
+}
+
+impl Script {
+    fn new() -> Self {
+        let scene = Scene::default_scene();
+        let sim = scene.build().unwrap();
+        let (lo, hi) = sim.mesh.bounding_box();
+        let top = Point3::new((lo.x + hi.x) / 2.0, (lo.y + hi.y) / 2.0, hi.z + 0.01);
+        let trocar = sim.instruments[0].trocar;
+        Script {
+            sim,
+            scene,
+            top,
+            trocar,
+        }
+    }
+
+    fn pose(&self, k: u64) -> InstrumentPose {
+        let tip = self.top - nalgebra::Vector3::z() * (1e-3 * k as f64);
+        InstrumentPose::new(tip, Unit::new_normalize(self.trocar - tip))
+    }
+
+    /// The device pose of tick `k`, as a station would send it.
+    fn device_pose(&self, k: u64) -> v1::DevicePose {
+        let p = self.pose(k);
+        v1::DevicePose {
+            instrument: self.sim.instruments[0].name.clone(),
+            pose: Some(to_pose(&p.tip, &p.axis)),
+            device_time_s: k as f64 * 1e-3,
+            sequence: k + 1,
+        }
+    }
+
+    /// Sets tick `k`'s pose, ticks, and returns the frame.
+    fn tick(&mut self, k: u64) -> Frame {
+        self.sim.set_pose(0, Some(self.pose(k)));
+        self.sim.tick();
+        let n = self.sim.instruments.len();
+        Frame {
+            tick: self.sim.tick,
+            sim_time: self.sim.time,
+            surface: surface_positions(&self.sim),
+            instruments: (0..n)
+                .map(|i| instrument_state(&self.sim, i, Some(1), Some(k + 1)))
+                .collect(),
+        }
+    }
+
+    fn header(&self, start: SystemTime) -> SessionHeader {
+        SessionHeader {
+            session_id: "s7".into(),
+            scene_name: self.scene.name.clone(),
+            scene_toml: self.scene.text.clone(),
+            start,
+            description: description(&self.scene, &self.sim),
+        }
+    }
+}
+
+fn temp() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+/// Runs `ticks` ticks of the script through a recorder, with the pose of each tick
+/// recorded before it; returns the frames and poses handed over.
+fn record_script(path: &Path, ticks: u64) -> (Vec<Arc<Frame>>, Vec<v1::DevicePose>, SessionHeader) {
+    let mut script = Script::new();
+    let header = script.header(SystemTime::now());
+    let recorder = Recorder::start(path.to_path_buf(), header.clone()).unwrap();
+    let (mut frames, mut poses) = (Vec::new(), Vec::new());
+    for k in 0..ticks {
+        let pose = script.device_pose(k);
+        assert_eq!(
+            recorder.offer(Item::Pose {
+                received: SystemTime::now(),
+                pose: pose.clone()
+            }),
+            None
+        );
+        poses.push(pose);
+        let frame = Arc::new(script.tick(k));
+        assert_eq!(
+            recorder.offer(Item::Frame {
+                frame: frame.clone(),
+                wall: SystemTime::now()
+            }),
+            None
+        );
+        frames.push(frame);
+    }
+    recorder.finish().unwrap();
+    assert_eq!(
+        recorder
+            .stats()
+            .dropped
+            .load(std::sync::atomic::Ordering::Relaxed),
+        0
+    );
+    (frames, poses, header)
+}
+
+#[test]
+fn a_scripted_run_reads_back_bit_for_bit() {
+    let dir = temp();
+    let path = dir.path().join("run.mcap");
+    let (frames, poses, header) = record_script(&path, 40);
+    let rec = Recording::open(&path).unwrap();
+
+    let meta = rec.meta();
+    assert_eq!(meta.format_version, FORMAT_VERSION);
+    assert_eq!(meta.session_id, "s7");
+    assert_eq!(meta.scene, header.scene_name);
+    assert_eq!(meta.scene_toml, header.scene_toml);
+    assert!(!meta.scene_toml.is_empty());
+    assert_eq!(meta.start_unix_ns, unix_ns(header.start));
+    assert_eq!(rec.scene().unwrap(), header.description);
+
+    let surfaces = rec.surfaces().unwrap();
+    assert_eq!(surfaces.len(), frames.len());
+    for (s, f) in surfaces.iter().zip(&frames) {
+        assert_eq!(s.message.tick, f.tick);
+        assert_eq!(s.message.sim_time_s.to_bits(), f.sim_time.to_bits());
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&s.message.positions), bits(&f.surface));
+        assert_eq!(s.log_time, sim_log_time(meta.start_unix_ns, f.sim_time));
+    }
+    let states = rec.instrument_states().unwrap();
+    let expected: Vec<_> = frames.iter().flat_map(|f| f.instruments.clone()).collect();
+    assert_eq!(
+        states.into_iter().map(|s| s.message).collect::<Vec<_>>(),
+        expected
+    );
+    assert_eq!(
+        rec.poses()
+            .unwrap()
+            .into_iter()
+            .map(|p| p.message)
+            .collect::<Vec<_>>(),
+        poses
+    );
+    // Log times of ticks never go back.
+    let times: Vec<u64> = rec.surfaces().unwrap().iter().map(|s| s.log_time).collect();
+    assert!(times.windows(2).all(|w| w[0] < w[1]));
+    let counts = rec.message_counts();
+    assert_eq!(counts[TOPIC_SURFACE], 40);
+    assert_eq!(counts[TOPIC_POSES], 40);
+    assert_eq!(counts[TOPIC_SCENE], 1);
+}
+
+#[test]
+fn every_schema_is_the_contract_named_by_its_message() {
+    let dir = temp();
+    let path = dir.path().join("run.mcap");
+    record_script(&path, 3);
+    let rec = Recording::open(&path).unwrap();
+    let summary = rec.mcap_summary();
+    assert_eq!(summary.channels.len(), 5);
+    for channel in summary.channels.values() {
+        assert_eq!(channel.message_encoding, "protobuf");
+        let schema = channel.schema.as_ref().unwrap();
+        assert_eq!(schema.encoding, "protobuf");
+        let set = prost_types::FileDescriptorSet::decode(&*schema.data).unwrap();
+        let (package, message) = schema.name.rsplit_once('.').unwrap();
+        assert!(
+            set.file
+                .iter()
+                .any(|f| f.package() == package
+                    && f.message_type.iter().any(|m| m.name() == message)),
+            "{} is not in its schema's descriptors",
+            schema.name
+        );
+    }
+    let topics: std::collections::BTreeSet<_> = summary
+        .channels
+        .values()
+        .map(|c| c.topic.as_str())
+        .collect();
+    assert_eq!(
+        topics,
+        [
+            TOPIC_SCENE,
+            TOPIC_POSES,
+            TOPIC_SURFACE,
+            TOPIC_INSTRUMENTS,
+            TOPIC_EVENTS
+        ]
+        .into_iter()
+        .collect()
+    );
+}
+
+#[test]
+fn the_summary_measures_the_scripted_push() {
+    let dir = temp();
+    let path = dir.path().join("run.mcap");
+    let (frames, _, header) = record_script(&path, 40);
+    let rec = Recording::open(&path).unwrap();
+    let s = summarize(&rec).unwrap();
+    assert_eq!(s.ticks, 40);
+    assert_eq!(s.poses, 40);
+    assert_eq!(
+        s.duration_s.to_bits(),
+        frames.last().unwrap().sim_time.to_bits()
+    );
+    let left = &s.instruments["left"];
+    assert_eq!(left.ticks_with_pose, 40);
+    // 39 steps of 1 mm.
+    assert!(
+        (left.path_length_m - 0.039).abs() < 1e-9,
+        "{}",
+        left.path_length_m
+    );
+    let forces: Vec<f64> = frames
+        .iter()
+        .map(|f| {
+            let v = f.instruments[0]
+                .force
+                .as_ref()
+                .and_then(|f| f.force)
+                .unwrap_or_default();
+            (v.x * v.x + v.y * v.y + v.z * v.z).sqrt()
+        })
+        .collect();
+    let max = forces.iter().cloned().fold(0.0, f64::max);
+    assert!(max > 0.0, "the push never touched the liver");
+    assert_eq!(left.max_force_n, max);
+    assert!((left.mean_force_n - forces.iter().sum::<f64>() / 40.0).abs() < 1e-12);
+    let contact = frames
+        .iter()
+        .filter(|f| f.instruments[0].contact != v1::ContactState::None as i32)
+        .count() as u64;
+    assert_eq!(left.contact_ticks, contact);
+    let rate = header.description.summary.unwrap().mechanics_rate_hz;
+    assert!((left.time_in_contact_s - contact as f64 / rate).abs() < 1e-12);
+    assert!(left.max_force_jump_n > 0.0 && left.max_force_jump_n <= max + 1e-12);
+    // The other instrument never had a pose.
+    let right = &s.instruments["right"];
+    assert_eq!((right.ticks_with_pose, right.path_length_m), (0, 0.0));
+}
+
+/// Writes a recording, closing a chunk every `per_chunk` ticks; returns the file
+/// size and message count after each chunk, and the finished file's bytes.
+fn chunked(path: &Path, ticks: u64, per_chunk: u64) -> (Vec<(u64, u64)>, Vec<u8>) {
+    let mut script = Script::new();
+    let header = script.header(SystemTime::now());
+    let mut sink = McapSink::create(path, &header).unwrap();
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    let mut boundaries = vec![(size(path), sink.messages)];
+    for k in 0..ticks {
+        sink.write_pose(SystemTime::now(), &script.device_pose(k))
+            .unwrap();
+        let frame = script.tick(k);
+        sink.write_frame(&frame, SystemTime::now()).unwrap();
+        if (k + 1) % per_chunk == 0 {
+            sink.flush().unwrap();
+            boundaries.push((size(path), sink.messages));
+        }
+    }
+    drop(sink.finish().unwrap());
+    (boundaries, std::fs::read(path).unwrap())
+}
+
+/// Every message of a recording, raw, in file order.
+fn raw_messages(path: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            (m.channel.topic.clone(), m.log_time, m.data.into_owned())
+        })
+        .collect()
+}
+
+#[test]
+fn a_file_cut_short_recovers_every_complete_chunk() {
+    let dir = temp();
+    let full = dir.path().join("full.mcap");
+    let (boundaries, bytes) = chunked(&full, 24, 4);
+    let all = raw_messages(&full);
+    assert_eq!(all.len() as u64, boundaries.last().unwrap().1);
+    let mut cuts: Vec<(u64, u64, u64)> = Vec::new(); // (offset, at least, at most)
+    for w in boundaries.windows(2) {
+        let ((a, na), (b, nb)) = (w[0], w[1]);
+        cuts.push((a, na, na)); // right after a chunk and its indexes
+        cuts.push((a + 1, na, na)); // one byte into the next chunk
+        cuts.push(((a + b) / 2, na, nb)); // mid-chunk
+        cuts.push((b - 1, na, nb));
+    }
+    let n = all.len() as u64;
+    cuts.push((bytes.len() as u64 - 1, n, n)); // only the end magic missing
+    cuts.push((boundaries.last().unwrap().0 + 3, n, n)); // inside the summary
+    for (cut, at_least, at_most) in cuts {
+        let cut_path = dir.path().join(format!("cut-{cut}.mcap"));
+        std::fs::write(&cut_path, &bytes[..cut as usize]).unwrap();
+        assert!(matches!(
+            Recording::open(&cut_path),
+            Err(ReadError::Truncated { .. })
+        ));
+        let fixed = dir.path().join(format!("fixed-{cut}.mcap"));
+        let report = recover(&cut_path, &fixed).unwrap();
+        let got = raw_messages(&fixed);
+        assert!(
+            (at_least..=at_most).contains(&(got.len() as u64)),
+            "cut at {cut}: {} messages, expected {at_least}..={at_most}",
+            got.len()
+        );
+        assert_eq!(report.messages, got.len() as u64);
+        assert_eq!(got[..], all[..got.len()], "cut at {cut}");
+        assert!(report.bytes_kept <= cut);
+        // The recovered file is complete: indexed and readable as any recording.
+        let rec = Recording::open(&fixed).unwrap();
+        assert!(!rec.mcap_summary().chunk_indexes.is_empty());
+        assert_eq!(rec.meta().session_id, "s7");
+        assert_eq!(rec.message_counts().values().sum::<u64>(), got.len() as u64);
+        assert!(summarize(&rec).is_ok());
+    }
+    // A complete file recovers to the same messages, in place.
+    let copy = dir.path().join("copy.mcap");
+    std::fs::copy(&full, &copy).unwrap();
+    let report = recover(&copy, &copy).unwrap();
+    assert!(report.was_complete);
+    assert_eq!(raw_messages(&copy), all);
+}
+
+#[test]
+fn a_recording_of_another_version_is_refused_by_name() {
+    let dir = temp();
+    let path = dir.path().join("v2.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile("protobuf")
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
+        .unwrap();
+    w.write_metadata(&mcap::records::Metadata {
+        name: METADATA_NAME.into(),
+        metadata: [("format_version".to_string(), "2".to_string())].into(),
+    })
+    .unwrap();
+    w.finish().unwrap();
+    drop(w);
+    let err = Recording::open(&path).unwrap_err();
+    assert!(
+        matches!(&err, ReadError::UnsupportedVersion { found, .. } if found == "2"),
+        "{err}"
+    );
+    assert!(err.to_string().contains("version `2`"), "{err}");
+}
+
+#[test]
+fn files_that_are_not_recordings_give_clear_errors() {
+    let dir = temp();
+    let write = |name: &str, bytes: &[u8]| -> PathBuf {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let text = write("notes.mcap", b"this is not a recording at all");
+    assert!(matches!(
+        Recording::open(&text),
+        Err(ReadError::NotMcap { .. })
+    ));
+    assert!(matches!(
+        recover(&text, &dir.path().join("x.mcap")),
+        Err(RecoverError::NotMcap { .. })
+    ));
+    let empty = write("empty.mcap", b"");
+    assert!(matches!(
+        Recording::open(&empty),
+        Err(ReadError::NotMcap { .. })
+    ));
+    let mut framed = mcap::MAGIC.to_vec();
+    framed.extend_from_slice(&[0xAB; 100]);
+    framed.extend_from_slice(mcap::MAGIC);
+    let garbage = write("garbage.mcap", &framed);
+    let err = Recording::open(&garbage).unwrap_err();
+    assert!(matches!(err, ReadError::Corrupt { .. }), "{err}");
+    assert!(matches!(
+        Recording::open(&dir.path().join("missing.mcap")),
+        Err(ReadError::Io { .. })
+    ));
+
+    // An MCAP file without our metadata.
+    let plain = dir.path().join("plain.mcap");
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(&plain).unwrap(),
+    ))
+    .unwrap();
+    w.finish().unwrap();
+    drop(w);
+    assert!(matches!(
+        Recording::open(&plain),
+        Err(ReadError::NotARecording { .. })
+    ));
+
+    // Damage anywhere in a real recording: an error or a partial read, never a panic.
+    let good = dir.path().join("good.mcap");
+    record_script(&good, 10);
+    let bytes = std::fs::read(&good).unwrap();
+    for at in (8..bytes.len()).step_by(bytes.len() / 400 + 1) {
+        let mut bad = bytes.clone();
+        bad[at] ^= 0x5A;
+        if let Ok(rec) = Recording::from_bytes(format!("bad-{at}"), bad.clone()) {
+            let _ = rec.messages().count();
+            let _ = summarize(&rec);
+        }
+        let _ = super::recover::recover_bytes("bad", &bad, std::io::Cursor::new(Vec::new()));
+    }
+}
+
+#[test]
+fn a_full_channel_is_counted_and_reported_never_silent() {
+    let dir = temp();
+    let path = dir.path().join("lag.mcap");
+    let mut script = Script::new();
+    let recorder =
+        Recorder::with_capacity(path.clone(), script.header(SystemTime::now()), 1).unwrap();
+    let frame = Arc::new(script.tick(0));
+    let mut reports = Vec::new();
+    let mut offered = 0u64;
+    let stats = recorder.stats();
+    while stats.dropped.load(std::sync::atomic::Ordering::Relaxed) == 0 && offered < 1_000_000 {
+        offered += 1;
+        reports.extend(recorder.offer(Item::Frame {
+            frame: frame.clone(),
+            wall: SystemTime::now(),
+        }));
+    }
+    let dropped = stats.dropped.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(dropped > 0, "a channel of one never filled");
+    let dropped_first = dropped;
+    assert_eq!(reports.len(), 1);
+    assert_eq!(reports[0].kind(), v1::EventKind::RecorderLagging);
+    // A later item makes it through: the file notes the gap before it.
+    let sent_before = stats.sent.load(std::sync::atomic::Ordering::Relaxed);
+    while stats.sent.load(std::sync::atomic::Ordering::Relaxed) == sent_before {
+        let report = recorder.offer(Item::Event {
+            event: v1::Event {
+                tick: 1,
+                kind: v1::EventKind::SessionClosing as i32,
+                ..Default::default()
+            },
+            wall: SystemTime::now(),
+        });
+        assert!(report.is_none_or(|r| r.kind() == v1::EventKind::RecorderLagging));
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    recorder.finish().unwrap();
+    let sent = stats.sent.load(std::sync::atomic::Ordering::Relaxed);
+    let dropped = stats.dropped.load(std::sync::atomic::Ordering::Relaxed);
+    assert_eq!(
+        sent + dropped,
+        offered + (sent - sent_before) + (dropped - dropped_first)
+    );
+    let rec = Recording::open(&path).unwrap();
+    let events = rec.events().unwrap();
+    let surfaces = rec.surfaces().unwrap().len() as u64;
+    let closing = events
+        .iter()
+        .filter(|e| e.message.kind == v1::EventKind::SessionClosing as i32)
+        .count() as u64;
+    assert_eq!(surfaces + closing, sent);
+    assert!(
+        events
+            .iter()
+            .any(|e| e.message.kind == v1::EventKind::RecorderLagging as i32),
+        "{dropped} dropped and no lagging event in the file"
+    );
+}
+
+#[test]
+fn an_unwritable_directory_is_reported_once_and_nothing_waits() {
+    let dir = temp();
+    let path = dir.path().join("no-such-dir").join("x.mcap");
+    let script = Script::new();
+    let recorder = Recorder::start(path, script.header(SystemTime::now())).unwrap();
+    let event = || Item::Event {
+        event: v1::Event::default(),
+        wall: SystemTime::now(),
+    };
+    // Until the thread has failed, offers queue up (and may fill the channel, which
+    // is reported as lagging); the failure is then reported once.
+    let failed = loop {
+        match recorder.offer(event()) {
+            Some(r @ Report::Failed { .. }) => break r,
+            Some(r) => assert_eq!(r.kind(), v1::EventKind::RecorderLagging),
+            None => std::thread::yield_now(),
+        }
+    };
+    assert!(matches!(&failed, Report::Failed { error } if error.contains("no-such-dir")));
+    assert_eq!(failed.kind(), v1::EventKind::RecorderError);
+    for _ in 0..10 {
+        assert_eq!(recorder.offer(event()), None);
+    }
+    assert_eq!(
+        recorder
+            .stats()
+            .errors
+            .load(std::sync::atomic::Ordering::Relaxed),
+        1
+    );
+    assert!(!recorder.created_file());
+    assert!(recorder.finish().is_err());
+}
+
+/// Waits until the session has ticked `n` times.
+fn wait_ticks(session: &Session, n: u64) {
+    while session
+        .stats
+        .tick
+        .load(std::sync::atomic::Ordering::Relaxed)
+        < n
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn a_recorded_session_writes_its_ticks_poses_and_events() {
+    let dir = temp();
+    let config = SessionConfig {
+        idle_timeout: None,
+        recordings: Some(dir.path().to_path_buf()),
+    };
+    let session = Session::start("s3".into(), Scene::default_scene(), &config).unwrap();
+    let file = session.info().recording_file.unwrap();
+    assert!(
+        file.starts_with("s3-default-") && file.ends_with(".mcap"),
+        "{file}"
+    );
+    wait_ticks(&session, 5);
+    let script = Script::new();
+    let poses: Vec<_> = (0..5).map(|k| script.device_pose(k)).collect();
+    for p in &poses {
+        session.record_pose(p);
+    }
+    session.publish(
+        v1::EventKind::StationJoined,
+        Some(1),
+        None,
+        "test station".into(),
+    );
+    wait_ticks(&session, 10);
+    session.close("test over");
+    session.join();
+    let last_tick = session
+        .stats
+        .tick
+        .load(std::sync::atomic::Ordering::Relaxed);
+    let rec = Recording::open(&dir.path().join(&file)).unwrap();
+    assert_eq!(rec.meta().session_id, "s3");
+    assert_eq!(rec.meta().scene_toml, Scene::default_scene().text);
+    assert_eq!(rec.scene().unwrap(), session.description);
+    let surfaces = rec.surfaces().unwrap();
+    assert_eq!(surfaces.len() as u64, last_tick);
+    assert!(
+        surfaces
+            .iter()
+            .enumerate()
+            .all(|(i, s)| s.message.tick == i as u64 + 1)
+    );
+    assert_eq!(
+        rec.instrument_states().unwrap().len(),
+        surfaces.len() * session.scene.instruments.len()
+    );
+    assert_eq!(
+        rec.poses()
+            .unwrap()
+            .into_iter()
+            .map(|p| p.message)
+            .collect::<Vec<_>>(),
+        poses
+    );
+    let kinds: Vec<i32> = rec
+        .events()
+        .unwrap()
+        .iter()
+        .map(|e| e.message.kind)
+        .collect();
+    assert!(kinds.contains(&(v1::EventKind::StationJoined as i32)));
+    assert_eq!(kinds.last(), Some(&(v1::EventKind::SessionClosing as i32)));
+    let r = session.recorder().unwrap();
+    assert_eq!(
+        r.stats().dropped.load(std::sync::atomic::Ordering::Relaxed),
+        0
+    );
+    assert_eq!(r.error(), None);
+}
+
+#[test]
+fn a_session_whose_recording_fails_goes_on_without_it() {
+    let dir = temp();
+    let config = SessionConfig {
+        idle_timeout: None,
+        recordings: Some(dir.path().join("missing")),
+    };
+    let session = Session::start("s4".into(), Scene::default_scene(), &config).unwrap();
+    // The recorder thread fails at once; the RECORDER_ERROR event it causes may
+    // come before anyone could subscribe (the recorder test checks the report),
+    // so this checks what stays: the error, the count, no file named.
+    let recorder = session.recorder().unwrap();
+    while recorder.error().is_none() {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(recorder.error().unwrap().contains("missing"));
+    let tick = session
+        .stats
+        .tick
+        .load(std::sync::atomic::Ordering::Relaxed);
+    wait_ticks(&session, tick + 3);
+    assert_eq!(session.info().recording_file, None);
+    assert_eq!(
+        session
+            .recorder()
+            .unwrap()
+            .stats()
+            .errors
+            .load(std::sync::atomic::Ordering::Relaxed),
+        1
+    );
+    session.close("test over");
+    session.join();
+}

@@ -1,0 +1,199 @@
+//! The MCAP side of a recording: the file's schemas and channels, one message per
+//! pose, surface frame, instrument state and event, and chunks closed often enough
+//! that a killed server loses at most the last second.
+//!
+//! Synchronous and single-threaded: [`super::recorder`] runs it on its own thread.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Seek, Write};
+use std::path::Path;
+use std::time::{Duration, Instant, SystemTime};
+
+use laparo_proto::v1;
+use mcap::records::{MessageHeader, Metadata};
+use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
+use prost::Message;
+
+use super::{
+    FORMAT_VERSION, METADATA_NAME, SCHEMA_EVENT, SCHEMA_INSTRUMENT, SCHEMA_POSE, SCHEMA_SCENE,
+    SCHEMA_SURFACE, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE, TOPIC_SURFACE,
+    sim_log_time, unix_ns,
+};
+use crate::session::Frame;
+
+/// Longest a written message stays in an open chunk: past this the chunk is closed
+/// and flushed to the file. Half the one second a crash may lose, so that a busy
+/// recorder thread that checks late still keeps within it.
+pub const FLUSH_INTERVAL: Duration = Duration::from_millis(500);
+
+/// What a recording says about its session, written once at its start.
+#[derive(Clone, Debug)]
+pub struct SessionHeader {
+    pub session_id: String,
+    /// The scene's name (`SceneSummary.name`).
+    pub scene_name: String,
+    /// The scene's TOML text as the server read it.
+    pub scene_toml: String,
+    /// When the session started; tick log times count from it.
+    pub start: SystemTime,
+    pub description: v1::SceneDescription,
+}
+
+/// Channel ids of the five topics.
+#[derive(Clone, Copy, Debug)]
+struct Channels {
+    scene: u16,
+    poses: u16,
+    surface: u16,
+    instruments: u16,
+    events: u16,
+}
+
+/// An MCAP file being written.
+pub struct McapSink<W: Write + Seek> {
+    writer: Writer<W>,
+    channels: Channels,
+    start_ns: u64,
+    sequence: u32,
+    buf: Vec<u8>,
+    /// When the oldest message of the open chunk was written; `None`: no open chunk.
+    open_since: Option<Instant>,
+    /// Messages written so far.
+    pub messages: u64,
+}
+
+impl McapSink<BufWriter<File>> {
+    /// Creates `path` (failing if it exists) and writes the session's header.
+    pub fn create(path: &Path, header: &SessionHeader) -> McapResult<Self> {
+        let file = File::options().write(true).create_new(true).open(path)?;
+        McapSink::new(BufWriter::new(file), header)
+    }
+}
+
+impl<W: Write + Seek> McapSink<W> {
+    /// Starts a recording on `w`: the schemas and channels, the scene on `/scene`
+    /// and the `laparo.scene` metadata, then closes the first chunk so that a file
+    /// cut short anywhere later still says what it records.
+    pub fn new(w: W, header: &SessionHeader) -> McapResult<Self> {
+        let options = WriteOptions::new()
+            .profile("protobuf")
+            .compression(Some(Compression::Zstd))
+            // One recorder thread per session is enough: no compression workers.
+            .compression_threads(0);
+        let mut writer = options.create(w)?;
+        let no_metadata = BTreeMap::new();
+        let channel = |writer: &mut Writer<W>, topic: &str, name: &str| {
+            let schema = writer.add_schema(name, "protobuf", laparo_proto::FILE_DESCRIPTOR_SET)?;
+            writer.add_channel(schema, topic, "protobuf", &no_metadata)
+        };
+        let channels = Channels {
+            scene: channel(&mut writer, TOPIC_SCENE, SCHEMA_SCENE)?,
+            poses: channel(&mut writer, TOPIC_POSES, SCHEMA_POSE)?,
+            surface: channel(&mut writer, TOPIC_SURFACE, SCHEMA_SURFACE)?,
+            instruments: channel(&mut writer, TOPIC_INSTRUMENTS, SCHEMA_INSTRUMENT)?,
+            events: channel(&mut writer, TOPIC_EVENTS, SCHEMA_EVENT)?,
+        };
+        let start_ns = unix_ns(header.start);
+        let mut sink = McapSink {
+            writer,
+            channels,
+            start_ns,
+            sequence: 0,
+            buf: Vec::new(),
+            open_since: None,
+            messages: 0,
+        };
+        sink.write(channels.scene, start_ns, start_ns, &header.description)?;
+        sink.writer.write_metadata(&Metadata {
+            name: METADATA_NAME.into(),
+            metadata: BTreeMap::from([
+                ("format_version".into(), FORMAT_VERSION.into()),
+                ("session_id".into(), header.session_id.clone()),
+                ("scene".into(), header.scene_name.clone()),
+                ("start_unix_ns".into(), start_ns.to_string()),
+                ("scene_toml".into(), header.scene_toml.clone()),
+            ]),
+        })?;
+        sink.flush()?;
+        Ok(sink)
+    }
+
+    /// Log time of simulated time `sim_time`, ns since the Unix epoch.
+    pub fn log_time(&self, sim_time: f64) -> u64 {
+        sim_log_time(self.start_ns, sim_time)
+    }
+
+    fn write(
+        &mut self,
+        channel: u16,
+        log_time: u64,
+        publish_time: u64,
+        m: &impl Message,
+    ) -> McapResult<()> {
+        self.buf.clear();
+        m.encode(&mut self.buf)
+            .map_err(|e| McapError::Io(std::io::Error::other(e)))?;
+        self.writer.write_to_known_channel(
+            &MessageHeader {
+                channel_id: channel,
+                sequence: self.sequence,
+                log_time,
+                publish_time,
+            },
+            &self.buf,
+        )?;
+        self.sequence = self.sequence.wrapping_add(1);
+        self.messages += 1;
+        self.open_since.get_or_insert_with(Instant::now);
+        Ok(())
+    }
+
+    /// A pose as the server accepted it, stamped with when it was received.
+    pub fn write_pose(&mut self, received: SystemTime, pose: &v1::DevicePose) -> McapResult<()> {
+        let t = unix_ns(received);
+        self.write(self.channels.poses, t, t, pose)
+    }
+
+    /// One tick: the surface, then every instrument's state. `wall` is when the
+    /// tick was published.
+    pub fn write_frame(&mut self, frame: &Frame, wall: SystemTime) -> McapResult<()> {
+        let (log, publish) = (self.log_time(frame.sim_time), unix_ns(wall));
+        let surface = v1::SurfaceFrame {
+            tick: frame.tick,
+            sim_time_s: frame.sim_time,
+            positions: frame.surface.clone(),
+        };
+        self.write(self.channels.surface, log, publish, &surface)?;
+        for state in &frame.instruments {
+            self.write(self.channels.instruments, log, publish, state)?;
+        }
+        Ok(())
+    }
+
+    /// An event; `wall` is when it happened.
+    pub fn write_event(&mut self, event: &v1::Event, wall: SystemTime) -> McapResult<()> {
+        let log = self.log_time(event.sim_time_s);
+        self.write(self.channels.events, log, unix_ns(wall), event)
+    }
+
+    /// Closes the open chunk if it has been open for [`FLUSH_INTERVAL`].
+    pub fn flush_if_due(&mut self) -> McapResult<()> {
+        match self.open_since {
+            Some(t) if t.elapsed() >= FLUSH_INTERVAL => self.flush(),
+            _ => Ok(()),
+        }
+    }
+
+    /// Closes the open chunk and flushes it to the file.
+    pub fn flush(&mut self) -> McapResult<()> {
+        self.open_since = None;
+        self.writer.flush()
+    }
+
+    /// Writes the summary and footer and hands back the stream.
+    pub fn finish(mut self) -> McapResult<W> {
+        self.writer.finish()?;
+        Ok(self.writer.into_inner())
+    }
+}
