@@ -116,8 +116,7 @@ pub struct DemoArgs {
     /// How long the demo runs, s (the gesture takes 10 s and repeats).
     #[arg(long, value_name = "T", value_parser = seconds, default_value = "10")]
     pub seconds: Duration,
-    /// Where sessions are recorded (recording arrives with the recording work; the
-    /// demo says so).
+    /// Where the session is recorded (MCAP) [default: ./recordings].
     #[arg(long, value_name = "DIR")]
     pub recordings: Option<std::path::PathBuf>,
 }

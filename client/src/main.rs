@@ -68,7 +68,15 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
     let url = format!("http://{}", listener.local_addr()?);
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(serve(ServeConfig::default(), listener, async {
+    let recordings = args
+        .recordings
+        .clone()
+        .unwrap_or_else(|| std::path::PathBuf::from("recordings"));
+    let config = ServeConfig {
+        recordings: Some(recordings.clone()),
+        ..ServeConfig::default()
+    };
+    let server = tokio::spawn(serve(config, listener, async {
         let _ = stopped.await;
     }));
     let connection = connect(&ConnectConfig::new(url.clone())).await?;
@@ -77,7 +85,7 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
         .create_session(laparo_client::proto::v1::CreateSessionRequest {
             scene: "default".into(),
             idle_timeout_s: None,
-            record: None,
+            record: Some(true),
         })
         .await?
         .into_inner();
@@ -112,12 +120,12 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
     let served = server.await;
     let summary = summary?;
     print_station_summary(&summary);
-    match args.recordings {
-        Some(dir) => println!(
-            "  recording            none: this build does not record sessions yet ({} stays empty)",
-            dir.display()
+    match &session.recording_file {
+        Some(file) => println!("  recording            {}", recordings.join(file).display()),
+        None => println!(
+            "  recording            none: {} could not be written (see the events above)",
+            recordings.display()
         ),
-        None => println!("  recording            none: this build does not record sessions yet"),
     }
     served??;
     Ok(())

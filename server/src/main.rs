@@ -55,6 +55,12 @@ struct ServeArgs {
     /// Listen on a non-loopback address without TLS and tokens.
     #[arg(long)]
     insecure: bool,
+    /// Directory sessions are recorded in (one MCAP file each).
+    #[arg(long, value_name = "DIR", default_value = "recordings")]
+    recordings: PathBuf,
+    /// Record no session.
+    #[arg(long, conflicts_with = "recordings")]
+    no_recording: bool,
 }
 
 fn non_negative_seconds(s: &str) -> Result<f64, String> {
@@ -84,6 +90,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             ..PoseLimits::default()
         },
         insecure: args.insecure,
+        recordings: (!args.no_recording).then_some(args.recordings),
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
     runtime.block_on(async move {

@@ -666,3 +666,74 @@ async fn an_idle_session_closes_itself() {
     assert_eq!(unknown.err().map(|s| s.code()), Some(Code::NotFound));
     server.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_session_is_recorded_through_a_real_server() {
+    use laparo_server::recording::Recording;
+    let dir = std::env::temp_dir().join(format!("laparo-rec-{}", std::process::id()));
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let file = dir.join(
+        info.recording_file
+            .clone()
+            .expect("a recorded session names its file"),
+    );
+    let (mut a, joined) = join(ch.clone(), None, &info.session_id, &["left"])
+        .await
+        .unwrap();
+    press(&a, "left", front(&joined), 0.0);
+    assert!(
+        wait_for(&mut a.rx, WAIT, |m| state_of(m, "left")
+            .is_some_and(|s| s.held_vertex_count > 0))
+        .await
+        .is_some()
+    );
+    drop(a);
+    let closed = sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: info.session_id.clone(),
+            reason: "test over".into(),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .session
+        .unwrap();
+    // Shutting down waits for every mechanics thread, which finishes the file.
+    server.shutdown().await.unwrap();
+    let recording = Recording::open(&file).unwrap();
+    let surfaces = recording.surfaces().unwrap();
+    let poses = recording.poses().unwrap();
+    assert!(
+        surfaces.len() as u64 >= closed.tick.saturating_sub(2),
+        "{} vs {}",
+        surfaces.len(),
+        closed.tick
+    );
+    assert_eq!(poses.len() as u64, closed.poses_accepted);
+    assert!(poses.iter().all(|p| p.message.instrument == "left"));
+    // The deformed surface is in it: some vertex moved more than 6 mm from rest.
+    let rest = joined.scene.unwrap().rest_surface.unwrap().positions;
+    assert!(surfaces.iter().any(|s| {
+        s.message
+            .positions
+            .iter()
+            .zip(&rest)
+            .any(|(p, r)| (p - r).abs() > 0.006)
+    }));
+    let _ = std::fs::remove_dir_all(&dir);
+}

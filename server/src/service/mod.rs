@@ -60,6 +60,9 @@ pub struct ServeConfig {
     pub pose_limits: PoseLimits,
     /// Listen on a non-loopback address without TLS and tokens anyway.
     pub insecure: bool,
+    /// Directory sessions are recorded in (created if missing); `None`: no
+    /// recording.
+    pub recordings: Option<PathBuf>,
 }
 
 #[derive(Debug, Error)]
@@ -91,7 +94,17 @@ pub async fn serve(
         return Err(ServeError::Insecure(addr));
     }
     let catalog = SceneCatalog::load(config.scene_dir.as_deref()).map_err(ServeError::Scenes)?;
-    let registry = Arc::new(Registry::new(catalog, config.idle_timeout));
+    if let Some(dir) = &config.recordings
+        && let Err(e) = std::fs::create_dir_all(dir)
+    {
+        // Sessions still run; each reports that it cannot record.
+        tracing::warn!(dir = %dir.display(), "cannot create the recordings directory: {e}");
+    }
+    let registry = Arc::new(Registry::new(
+        catalog,
+        config.idle_timeout,
+        config.recordings.clone(),
+    ));
     let auth = auth::Authenticate::new(config.tokens.clone());
 
     let reflection_v1 = tonic_reflection::server::Builder::configure()

@@ -54,15 +54,22 @@ pub struct Registry {
     next: AtomicU64,
     /// Default idle timeout of new sessions.
     pub idle_timeout: Option<Duration>,
+    /// Where sessions are recorded; `None`: this server records nothing.
+    pub recordings: Option<PathBuf>,
 }
 
 impl Registry {
-    pub fn new(catalog: SceneCatalog, idle_timeout: Option<Duration>) -> Self {
+    pub fn new(
+        catalog: SceneCatalog,
+        idle_timeout: Option<Duration>,
+        recordings: Option<PathBuf>,
+    ) -> Self {
         Registry {
             catalog,
             sessions: Mutex::new(BTreeMap::new()),
             next: AtomicU64::new(1),
             idle_timeout,
+            recordings,
         }
     }
 
@@ -70,11 +77,13 @@ impl Registry {
         self.sessions.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Starts a session of scene `name`.
+    /// Starts a session of scene `name`, recorded if `record` says so (absent: as
+    /// the scene declares) and the server records.
     pub fn create(
         &self,
         name: &str,
         idle_timeout: Option<Duration>,
+        record: Option<bool>,
     ) -> Result<Arc<Session>, Status> {
         let scene = self
             .catalog
@@ -83,9 +92,10 @@ impl Registry {
             .ok_or_else(|| Status::not_found(format!("no scene `{name}`")))?
             .clone();
         let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
+        let record = record.unwrap_or(scene.recording.enabled);
         let config = SessionConfig {
             idle_timeout,
-            recordings: None,
+            recordings: self.recordings.clone().filter(|_| record),
         };
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
@@ -118,13 +128,15 @@ impl Registry {
         map.values().cloned().collect()
     }
 
-    /// Closes and forgets session `id`.
+    /// Closes and forgets session `id`, once its mechanics thread has stopped and its
+    /// recording is finished (a tick at most, and the recording's footer).
     pub fn close(&self, id: &str, reason: &str) -> Result<Arc<Session>, Status> {
         let session = self
             .map()
             .remove(id)
             .ok_or_else(|| Status::not_found(format!("no session `{id}`")))?;
         session.close(reason);
+        tokio::task::block_in_place(|| session.join());
         Ok(session)
     }
 

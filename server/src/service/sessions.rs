@@ -37,7 +37,7 @@ impl Sessions for SessionsService {
         } else {
             &r.scene
         };
-        let session = self.registry.create(scene, idle)?;
+        let session = self.registry.create(scene, idle, r.record)?;
         Ok(Response::new(session.info()))
     }
 
