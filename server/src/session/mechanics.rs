@@ -41,14 +41,7 @@ pub(super) fn spawn(m: Mechanics) -> std::io::Result<JoinHandle<()>> {
 impl Mechanics {
     /// Publishes an event and records it.
     fn emit(&self, event: v1::Event) {
-        if let Some(r) = &self.recorder {
-            let report = r.offer(Item::Event {
-                event: event.clone(),
-                wall: SystemTime::now(),
-            });
-            self.report(report);
-        }
-        let _ = self.events.send(event);
+        super::broadcast_event(self.recorder.as_deref(), &self.events, event);
     }
 
     /// Tells the live streams what the recorder reported.

@@ -301,14 +301,7 @@ impl Session {
         detail: String,
     ) {
         let event = self.event(kind, station, instrument, detail);
-        if let Some(r) = &self.recorder {
-            let report = r.offer(Item::Event {
-                event: event.clone(),
-                wall: SystemTime::now(),
-            });
-            self.report(report);
-        }
-        let _ = self.events.send(event);
+        broadcast_event(self.recorder.as_deref(), &self.events, event);
     }
 
     /// Resolves to the reason once the session is closing.
@@ -411,6 +404,33 @@ pub fn recording_file_name(id: &str, scene: &str, created_at: SystemTime) -> Str
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
     format!("{id}-{scene}-{unix}.mcap")
+}
+
+/// Publishes `event` to the session's streams and offers it to the recorder; what
+/// the recorder reports (falling behind, failing) is published too, stamped like the
+/// event. Shared by the mechanics thread and the network side.
+fn broadcast_event(
+    recorder: Option<&Recorder>,
+    events: &broadcast::Sender<v1::Event>,
+    event: v1::Event,
+) {
+    if let Some(r) = recorder {
+        let wall = SystemTime::now();
+        let offered = r.offer(Item::Event {
+            event: event.clone(),
+            wall,
+        });
+        if let Some(report) = offered {
+            let _ = events.send(v1::Event {
+                kind: report.kind() as i32,
+                station_id: None,
+                instrument: None,
+                detail: report.detail(),
+                ..event.clone()
+            });
+        }
+    }
+    let _ = events.send(event);
 }
 
 /// A stream connected to a session (see [`Session::connect`]).
