@@ -37,6 +37,41 @@ pub enum Command {
     /// Load a session with N concurrent stations and report latency, frames and the
     /// session's tick times as a markdown table row.
     Load(LoadArgs),
+    /// Summarise a recorded session: duration, ticks, per-instrument path length,
+    /// time in contact, max and mean force, largest force jump, events.
+    Replay(ReplayArgs),
+    /// The recordings on disk.
+    #[command(subcommand)]
+    Recordings(RecordingsCommand),
+}
+
+/// `laparo replay`.
+#[derive(Args, Debug, Clone)]
+pub struct ReplayArgs {
+    /// A session recording (.mcap).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+}
+
+/// `laparo recordings …`.
+#[derive(Subcommand, Debug, Clone)]
+pub enum RecordingsCommand {
+    /// List the recordings of a directory: session, scene, start, duration, size.
+    List {
+        /// The recordings directory.
+        #[arg(long, value_name = "DIR", default_value = "recordings")]
+        dir: PathBuf,
+    },
+    /// Rewrite a truncated recording (a server killed mid-session) into a valid,
+    /// indexed one, keeping every complete chunk.
+    Recover {
+        /// The truncated recording.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Where to write the recovered file [default: over FILE].
+        #[arg(long, value_name = "OUT")]
+        out: Option<PathBuf>,
+    },
 }
 
 /// How to reach the server.

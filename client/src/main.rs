@@ -8,7 +8,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use laparo_client::cli::{Cli, Command, DemoArgs, LoadArgs, ObserveArgs, StationArgs};
+use laparo_client::cli::{
+    Cli, Command, DemoArgs, LoadArgs, ObserveArgs, RecordingsCommand, ReplayArgs, StationArgs,
+};
 use laparo_client::load::{LoadConfig, LoadSummary, run_load};
 use laparo_client::observe::{ObserveConfig, ObserveReport, event_line, run_observe};
 use laparo_client::station::{StationConfig, StationProgress, StationSummary, run_station};
@@ -39,6 +41,8 @@ fn main() -> ExitCode {
             Command::Station(args) => station(args).await,
             Command::Observe(args) => observe(args).await,
             Command::Load(args) => load(args).await,
+            Command::Replay(args) => replay(args),
+            Command::Recordings(command) => recordings(command),
         }
     });
     match result {
@@ -129,6 +133,98 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
     }
     served??;
     Ok(())
+}
+
+/// `laparo replay FILE`: the recording's summary.
+fn replay(args: ReplayArgs) -> Result<(), BoxError> {
+    use laparo_server::recording::{Recording, summarize};
+    let recording = Recording::open(&args.file)?;
+    let s = summarize(&recording)?;
+    let meta = recording.meta();
+    println!(
+        "{}: session {} of scene `{}`, format {}",
+        args.file.display(),
+        meta.session_id,
+        meta.scene,
+        meta.format_version
+    );
+    println!("  duration             {:.3} s simulated", s.duration_s);
+    println!("  ticks                {}", s.ticks);
+    println!("  poses received       {}", s.poses);
+    for (name, i) in &s.instruments {
+        println!(
+            "  {name}: path {:.1} mm, in contact {:.2} s, force max {:.3} N mean {:.3} N (in contact {:.3} N), largest jump {:.3} N",
+            i.path_length_m * 1e3,
+            i.time_in_contact_s,
+            i.max_force_n,
+            i.mean_force_n,
+            i.mean_contact_force_n,
+            i.max_force_jump_n
+        );
+    }
+    for (kind, n) in &s.events {
+        println!("  event {kind:<28} {n}");
+    }
+    Ok(())
+}
+
+/// `laparo recordings list|recover`.
+fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
+    use laparo_server::recording::{Recording, recover, summarize};
+    match command {
+        RecordingsCommand::List { dir } => {
+            let mut files: Vec<_> = std::fs::read_dir(&dir)
+                .map_err(|e| format!("{}: {e}", dir.display()))?
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+                .collect();
+            files.sort();
+            println!("| file | session | scene | start (unix s) | duration (s) | size (bytes) |");
+            println!("|---|---|---|---|---|---|");
+            for f in files {
+                let size = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
+                let name = f
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .to_string();
+                match Recording::open(&f).and_then(|r| summarize(&r).map(|s| (r, s))) {
+                    Ok((r, s)) => {
+                        let m = r.meta();
+                        println!(
+                            "| {name} | {} | {} | {:.0} | {:.2} | {size} |",
+                            m.session_id,
+                            m.scene,
+                            m.start_unix_ns as f64 * 1e-9,
+                            s.duration_s
+                        );
+                    }
+                    Err(e) => println!("| {name} | — | — | — | {e} | {size} |"),
+                }
+            }
+            Ok(())
+        }
+        RecordingsCommand::Recover { file, out } => {
+            let out = out.unwrap_or_else(|| file.clone());
+            let r = recover(&file, &out)?;
+            println!(
+                "{} → {}: {} chunks, {} messages kept ({} bytes), {} bytes after the last complete chunk left out{}",
+                file.display(),
+                out.display(),
+                r.chunks,
+                r.messages,
+                r.bytes_kept,
+                r.bytes_dropped,
+                if r.was_complete {
+                    "; it was complete"
+                } else {
+                    ""
+                }
+            );
+            Ok(())
+        }
+    }
 }
 
 async fn station(args: StationArgs) -> Result<(), BoxError> {

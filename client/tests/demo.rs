@@ -35,5 +35,49 @@ fn the_demo_presses_the_liver_and_reports() {
         "{name}\n{stdout}"
     );
     assert!(files[0].metadata().unwrap().len() > 10_000);
+    // The recording reads back: replay's summary and the list.
+    let laparo = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+            .args(args)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(
+            out.status.success(),
+            "{text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        text
+    };
+    let path = files[0].path();
+    let replay = laparo(&["replay".as_ref(), path.as_os_str()]);
+    let ticks: u64 = replay
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("ticks"))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{replay}"));
+    assert!(ticks > 100, "{replay}");
+    assert!(replay.contains("left: path"), "{replay}");
+    let list = laparo(&[
+        "recordings".as_ref(),
+        "list".as_ref(),
+        "--dir".as_ref(),
+        dir.as_os_str(),
+    ]);
+    assert!(list.contains(&name) && list.contains("default"), "{list}");
+    // Cut short as by a killed server, recovered, read back.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
+    let recovered = dir.join("recovered.mcap");
+    laparo(&[
+        "recordings".as_ref(),
+        "recover".as_ref(),
+        cut.as_os_str(),
+        "--out".as_ref(),
+        recovered.as_os_str(),
+    ]);
+    let again = laparo(&["replay".as_ref(), recovered.as_os_str()]);
+    assert!(again.contains("ticks"), "{again}");
     let _ = std::fs::remove_dir_all(&dir);
 }
