@@ -8,7 +8,7 @@ use crate::haptics::Trajectory;
 
 /// The front point of the rest surface: the most forward (+z) surface vertex near the
 /// middle (|x| < 3 cm, |y| < 2 cm), or the most forward of all.
-fn front(scene: &SceneDescription) -> Point3<f64> {
+pub fn front(scene: &SceneDescription) -> Point3<f64> {
     let positions = scene
         .rest_surface
         .as_ref()

@@ -13,7 +13,7 @@ use crate::proto::v1::{
     ContactState, Event, EventKind, InstrumentState, ObserveRequest, SceneDescription,
     observe_message,
 };
-use crate::station::{StationError, StopSignal, TickCounter, force_magnitude};
+use crate::station::{StationError, StopSignal, TickCounter, after, force_magnitude, when_stopped};
 
 /// How often [`ObserveReport::Status`] is given.
 pub const STATUS_PERIOD: Duration = Duration::from_secs(1);
@@ -185,20 +185,9 @@ pub async fn run_observe(
         tokio::time::interval_at(tokio::time::Instant::now() + STATUS_PERIOD, STATUS_PERIOD);
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let duration = config.duration;
-    let deadline = async move {
-        match duration {
-            Some(d) => tokio::time::sleep(d).await,
-            None => std::future::pending().await,
-        }
-    };
+    let deadline = after(duration);
     tokio::pin!(deadline);
-    let stop = config.stop.take();
-    let stop = async move {
-        match stop {
-            Some(f) => f.await,
-            None => std::future::pending().await,
-        }
-    };
+    let stop = when_stopped(config.stop.take());
     tokio::pin!(stop);
 
     loop {

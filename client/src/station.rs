@@ -73,6 +73,22 @@ pub type StopSignal = Pin<Box<dyn Future<Output = ()> + Send>>;
 /// Called with every event of the session, as it arrives.
 pub type EventSink = Box<dyn FnMut(&v1::Event) + Send>;
 
+/// Completes after `duration`, or never without one.
+pub(crate) async fn after(duration: Option<Duration>) {
+    match duration {
+        Some(d) => tokio::time::sleep(d).await,
+        None => std::future::pending().await,
+    }
+}
+
+/// Completes with `stop`, or never without one.
+pub(crate) async fn when_stopped(stop: Option<StopSignal>) {
+    match stop {
+        Some(f) => f.await,
+        None => std::future::pending().await,
+    }
+}
+
 /// What [`run_station`] does.
 pub struct StationConfig {
     /// The server.
@@ -527,20 +543,9 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
     let mut progress_tick = tokio::time::interval(PROGRESS_PERIOD);
     progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let duration = config.duration;
-    let deadline = async move {
-        match duration {
-            Some(d) => tokio::time::sleep(d).await,
-            None => std::future::pending().await,
-        }
-    };
+    let deadline = after(duration);
     tokio::pin!(deadline);
-    let stop = config.stop.take();
-    let stop = async move {
-        match stop {
-            Some(f) => f.await,
-            None => std::future::pending().await,
-        }
-    };
+    let stop = when_stopped(config.stop.take());
     tokio::pin!(stop);
 
     let end = loop {

@@ -15,19 +15,8 @@ const WAIT: Duration = Duration::from_secs(20);
 
 /// The front point of the rest surface (the default liver's free +z face), m.
 fn front(joined: &v1::Joined) -> [f64; 3] {
-    let p = &joined
-        .scene
-        .as_ref()
-        .unwrap()
-        .rest_surface
-        .as_ref()
-        .unwrap()
-        .positions;
-    p.chunks(3)
-        .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
-        .filter(|c| c[0].abs() < 0.03 && c[1].abs() < 0.02)
-        .max_by(|a, b| a[2].total_cmp(&b[2]))
-        .unwrap()
+    let f = laparo_client::demo::front(joined.scene.as_ref().unwrap());
+    [f.x, f.y, f.z]
 }
 
 /// Streams poses of `instrument` pressing along −z at `x_offset` beside the front
