@@ -43,6 +43,26 @@ pub enum Command {
     /// The recordings on disk.
     #[command(subcommand)]
     Recordings(RecordingsCommand),
+    /// Re-run a recording's physics from its recorded poses and report the largest
+    /// deviation from the recorded surfaces and forces: zero with the same build and
+    /// scene.
+    Resim(ResimArgs),
+}
+
+/// `laparo resim`.
+#[derive(Args, Debug, Clone)]
+pub struct ResimArgs {
+    /// A session recording (.mcap).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Folder the scene's mesh path resolves against [default: the one the server
+    /// recorded].
+    #[arg(long, value_name = "DIR")]
+    pub scene_dir: Option<PathBuf>,
+    /// Run the recorded hands on this scene instead (same mesh; another material or
+    /// force model): the deviation then measures the change.
+    #[arg(long, value_name = "FILE.toml")]
+    pub scene: Option<PathBuf>,
 }
 
 /// `laparo replay`.

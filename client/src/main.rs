@@ -9,7 +9,8 @@ use std::time::Duration;
 
 use clap::Parser;
 use laparo_client::cli::{
-    Cli, Command, DemoArgs, LoadArgs, ObserveArgs, RecordingsCommand, ReplayArgs, StationArgs,
+    Cli, Command, DemoArgs, LoadArgs, ObserveArgs, RecordingsCommand, ReplayArgs, ResimArgs,
+    StationArgs,
 };
 use laparo_client::load::{LoadConfig, LoadSummary, run_load};
 use laparo_client::observe::{ObserveConfig, ObserveReport, event_line, run_observe};
@@ -43,6 +44,7 @@ fn main() -> ExitCode {
             Command::Load(args) => load(args).await,
             Command::Replay(args) => replay(args),
             Command::Recordings(command) => recordings(command),
+            Command::Resim(args) => resim(args),
         }
     });
     match result {
@@ -165,6 +167,70 @@ fn replay(args: ReplayArgs) -> Result<(), BoxError> {
     for (kind, n) in &s.events {
         println!("  event {kind:<28} {n}");
     }
+    Ok(())
+}
+
+/// `laparo resim`: the recorded poses through the recorded (or another) scene.
+fn resim(args: ResimArgs) -> Result<(), BoxError> {
+    use laparo_server::recording::{Recording, resimulate_as};
+    let recording = Recording::open(&args.file)?;
+    let mut meta = recording.meta().clone();
+    if let Some(scene) = &args.scene {
+        meta.scene_toml =
+            std::fs::read_to_string(scene).map_err(|e| format!("{}: {e}", scene.display()))?;
+        meta.scene_dir = scene.parent().map(std::path::Path::to_path_buf);
+    }
+    let total = recording
+        .message_counts()
+        .get(laparo_server::recording::TOPIC_SURFACE)
+        .copied();
+    // A progress line once a second, for long recordings.
+    let mut next_line = std::time::Instant::now() + std::time::Duration::from_secs(1);
+    let mut shown = false;
+    let r = resimulate_as(&recording, &meta, args.scene_dir.as_deref(), |tick| {
+        if std::time::Instant::now() >= next_line {
+            eprint!("\r  tick {tick} of {}", total.unwrap_or(0));
+            next_line += std::time::Duration::from_secs(1);
+            shown = true;
+        }
+    })?;
+    if shown {
+        eprintln!();
+    }
+    println!(
+        "{}: re-simulated {} recorded ticks ({:.3} s simulated) in {:.2} s wall ({:.1}× real time)",
+        args.file.display(),
+        r.ticks_compared,
+        r.sim_time_s,
+        r.elapsed_s,
+        r.sim_time_s / r.elapsed_s.max(1e-9)
+    );
+    match r.worst_surface_tick {
+        Some(t) => println!(
+            "  largest surface deviation {:.3e} m (tick {t})",
+            r.max_surface_deviation_m
+        ),
+        None => println!("  largest surface deviation 0 m"),
+    }
+    println!(
+        "  largest force deviation   {:.3e} N",
+        r.max_force_deviation_n
+    );
+    println!("  contact state mismatches  {}", r.contact_mismatches);
+    if let Some(t) = r.first_missing_tick {
+        println!(
+            "  {} ticks are missing from the recording (the recorder fell behind), from tick {t}: deviations after it are expected",
+            r.missing_ticks
+        );
+    }
+    println!(
+        "  {}",
+        if r.is_exact() {
+            "identical to the recording"
+        } else {
+            "differs from the recording"
+        }
+    );
     Ok(())
 }
 

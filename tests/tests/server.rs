@@ -724,5 +724,10 @@ async fn a_session_is_recorded_through_a_real_server() {
             .zip(&rest)
             .any(|(p, r)| (p - r).abs() > 0.006)
     }));
+    // The recorded poses through the recorded scene again: the same surfaces and
+    // forces at every tick, to the bit.
+    let resim = laparo_server::recording::resimulate(&recording, None, |_| {}).unwrap();
+    assert_eq!(resim.ticks_compared, surfaces.len() as u64);
+    assert!(resim.is_exact(), "{resim:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -27,17 +27,22 @@
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
 //! - [`recover`]: rewrites the file a killed server left into a valid, indexed one.
+//! - [`resim`]: runs the recorded poses through the recorded scene again and
+//!   compares: zero deviation with the same build, since the engine is
+//!   deterministic.
 
 pub mod reader;
 pub mod recorder;
 pub mod records;
 pub mod recover;
+pub mod resim;
 pub mod summary;
 pub mod writer;
 
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};
+pub use resim::{ResimError, ResimReport, Resimulator, resimulate, resimulate_as};
 pub use summary::{InstrumentSummary, RecordingSummary, summarize};
 pub use writer::{McapSink, SessionHeader};
 

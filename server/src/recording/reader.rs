@@ -63,6 +63,9 @@ pub struct RecordingMeta {
     pub start_unix_ns: u64,
     /// The scene's TOML text.
     pub scene_toml: String,
+    /// The folder the scene's relative paths resolve against, as the server saw it
+    /// (absent for the embedded default scene).
+    pub scene_dir: Option<std::path::PathBuf>,
 }
 
 /// A decoded message of a recording.
@@ -163,6 +166,7 @@ impl Recording {
                 .parse()
                 .map_err(|_| not_ours(format!("its start time `{start}` is not a number of ns")))?,
             scene_toml: take("scene_toml")?,
+            scene_dir: fields.remove("scene_dir").map(std::path::PathBuf::from),
         };
         Ok(Recording {
             file,

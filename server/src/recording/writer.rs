@@ -35,6 +35,9 @@ pub struct SessionHeader {
     pub scene_name: String,
     /// The scene's TOML text as the server read it.
     pub scene_toml: String,
+    /// The folder its relative paths (the mesh) resolve against; `None` for the
+    /// embedded default scene.
+    pub scene_dir: Option<std::path::PathBuf>,
     /// When the session started; tick log times count from it.
     pub start: SystemTime,
     pub description: v1::SceneDescription,
@@ -107,13 +110,19 @@ impl<W: Write + Seek> McapSink<W> {
         sink.write(channels.scene, start_ns, start_ns, &header.description)?;
         sink.writer.write_metadata(&Metadata {
             name: METADATA_NAME.into(),
-            metadata: BTreeMap::from([
-                ("format_version".into(), FORMAT_VERSION.into()),
-                ("session_id".into(), header.session_id.clone()),
-                ("scene".into(), header.scene_name.clone()),
-                ("start_unix_ns".into(), start_ns.to_string()),
-                ("scene_toml".into(), header.scene_toml.clone()),
-            ]),
+            metadata: {
+                let mut m = BTreeMap::from([
+                    ("format_version".into(), FORMAT_VERSION.into()),
+                    ("session_id".into(), header.session_id.clone()),
+                    ("scene".into(), header.scene_name.clone()),
+                    ("start_unix_ns".into(), start_ns.to_string()),
+                    ("scene_toml".into(), header.scene_toml.clone()),
+                ]);
+                if let Some(dir) = &header.scene_dir {
+                    m.insert("scene_dir".into(), dir.display().to_string());
+                }
+                m
+            },
         })?;
         sink.flush()?;
         Ok(sink)

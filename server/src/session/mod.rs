@@ -132,6 +132,10 @@ impl Session {
                     session_id: id.clone(),
                     scene_name: scene.name.clone(),
                     scene_toml: scene.text.clone(),
+                    scene_dir: scene
+                        .base_dir
+                        .as_ref()
+                        .map(|d| std::path::absolute(d).unwrap_or_else(|_| d.clone())),
                     start: created_at,
                     description: description.clone(),
                 };

@@ -1,0 +1,322 @@
+//! Re-simulation: the recorded poses run through a fresh build of the recorded
+//! scene, tick by tick, and the result compared with what was recorded.
+//!
+//! Each recorded tick `k` holds every instrument's state after the `k`-th step,
+//! including the pose that step used (`InstrumentState.pose`, doubles, absent when
+//! the instrument was out of the body). Setting exactly those poses before step `k`
+//! and stepping gives the recorded tick again if the engine is deterministic: it is
+//! — fixed time step, no clocks or threads or randomness in a stage, every
+//! reduction in a fixed order — so with the same build and scene the deviation is
+//! exactly zero, and anything else points at a change in the physics.
+//!
+//! The surface is compared as recorded, f32 per coordinate: a deviation below
+//! f32's resolution at the liver's size (~4e-9 m at 0.1 m) cannot be seen, but
+//! "zero" means bit for bit equal. Forces are compared in f64, as the contract
+//! carries them.
+//!
+//! A recorder that fell behind left ticks out ([`super::Report::Lagging`]); the
+//! poses of a missing tick are not known, so the step holds the previous ones and
+//! the ticks are counted in [`ResimReport::missing_ticks`]: from the first gap on,
+//! a deviation is expected and says nothing about determinism.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use laparo_proto::v1;
+use nalgebra::{Point3, Unit, Vector3};
+
+use super::reader::{ReadError, Recorded, Recording, RecordingMeta};
+use crate::engine::contact::InstrumentPose;
+use crate::engine::scene::{Scene, SceneError, Simulation};
+use crate::session::describe::surface_positions;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ResimError {
+    #[error(transparent)]
+    Read(#[from] ReadError),
+    #[error("the recorded scene does not build: {0}")]
+    Scene(#[from] SceneError),
+    #[error(
+        "the scene built from the recording has {built} surface coordinates where the \
+         recording has {recorded}: its mesh is not the recorded one{hint}"
+    )]
+    MeshSize {
+        built: usize,
+        recorded: usize,
+        hint: String,
+    },
+    #[error(
+        "the scene built from the recording does not rest where the recorded one did \
+         (surface vertex {vertex} is {distance_m:e} m away): its mesh or scene is not the \
+         recorded one{hint}"
+    )]
+    MeshMoved {
+        vertex: usize,
+        distance_m: f64,
+        hint: String,
+    },
+    #[error("tick {tick}: instrument `{name}` is not in the recorded scene")]
+    UnknownInstrument { tick: u64, name: String },
+    #[error("tick {tick}: instrument `{name}` has a non-finite recorded pose")]
+    BadPose { tick: u64, name: String },
+    #[error("the recording's ticks go backwards: tick {tick} after tick {after}")]
+    OutOfOrder { tick: u64, after: u64 },
+}
+
+/// What a re-simulation found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ResimReport {
+    /// Recorded ticks compared.
+    pub ticks_compared: u64,
+    /// Steps taken (compared ticks plus the missing ones stepped through).
+    pub steps: u64,
+    /// Ticks the recording does not hold (the recorder fell behind).
+    pub missing_ticks: u64,
+    /// First missing tick, after which deviations are expected.
+    pub first_missing_tick: Option<u64>,
+    /// Largest |recorded − re-simulated| over every surface coordinate, m.
+    pub max_surface_deviation_m: f64,
+    /// Tick of that largest surface deviation.
+    pub worst_surface_tick: Option<u64>,
+    /// Largest |recorded − re-simulated| force vector, over instruments and ticks, N.
+    pub max_force_deviation_n: f64,
+    /// Ticks whose held-vertex count or contact state differ, over instruments.
+    pub contact_mismatches: u64,
+    /// Simulated time covered, s.
+    pub sim_time_s: f64,
+    /// Wall time the re-simulation took, s.
+    pub elapsed_s: f64,
+}
+
+impl ResimReport {
+    /// Exactly the recorded session again: every tick present and equal.
+    pub fn is_exact(&self) -> bool {
+        self.missing_ticks == 0
+            && self.max_surface_deviation_m == 0.0
+            && self.max_force_deviation_n == 0.0
+            && self.contact_mismatches == 0
+    }
+}
+
+/// The recorded scene rebuilt, stepped with recorded poses.
+pub struct Resimulator {
+    pub sim: Simulation,
+}
+
+impl Resimulator {
+    /// Builds the scene the recording names. Its relative paths resolve against
+    /// `scene_dir` if given, else against the folder the server recorded; the built
+    /// rest surface must be the recorded one to the bit (`rest`, f32 triples), so a
+    /// moved or edited mesh is an error rather than a meaningless deviation.
+    pub fn new(
+        meta: &RecordingMeta,
+        rest: &[f32],
+        scene_dir: Option<&Path>,
+    ) -> Result<Self, ResimError> {
+        let dir: Option<PathBuf> = scene_dir
+            .map(Path::to_path_buf)
+            .or_else(|| meta.scene_dir.clone());
+        let hint = match &dir {
+            Some(d) => format!(" (its mesh was looked for from {})", d.display()),
+            None => String::new(),
+        };
+        let scene = Scene::parse(&meta.scene_toml, &meta.scene, dir.as_deref())?;
+        let sim = scene.build()?;
+        let built = surface_positions(&sim);
+        if built.len() != rest.len() {
+            return Err(ResimError::MeshSize {
+                built: built.len(),
+                recorded: rest.len(),
+                hint,
+            });
+        }
+        if let Some((vertex, distance_m)) = largest_gap(&built, rest).filter(|&(_, d)| d != 0.0) {
+            return Err(ResimError::MeshMoved {
+                vertex,
+                distance_m,
+                hint,
+            });
+        }
+        Ok(Resimulator { sim })
+    }
+
+    /// Index of an instrument by name.
+    pub fn instrument(&self, name: &str) -> Option<usize> {
+        self.sim.instruments.iter().position(|i| i.name == name)
+    }
+
+    /// Sets the poses recorded for the next tick (instruments not named keep theirs)
+    /// and steps once. The recorded doubles are used as they are: the axis was unit
+    /// when the server stepped with it, and normalising again could move its last bit.
+    pub fn step(&mut self, states: &[v1::InstrumentState]) -> Result<(), ResimError> {
+        let tick = self.sim.tick + 1;
+        for s in states {
+            let k =
+                self.instrument(&s.instrument)
+                    .ok_or_else(|| ResimError::UnknownInstrument {
+                        tick,
+                        name: s.instrument.clone(),
+                    })?;
+            let pose = match &s.pose {
+                None => None,
+                Some(p) => {
+                    let v = |v: &Option<v1::Vec3>| v.as_ref().map(|v| Vector3::new(v.x, v.y, v.z));
+                    match (v(&p.tip), v(&p.axis)) {
+                        (Some(tip), Some(axis))
+                            if tip.iter().chain(axis.iter()).all(|c| c.is_finite()) =>
+                        {
+                            Some(InstrumentPose::new(
+                                Point3::from(tip),
+                                Unit::new_unchecked(axis),
+                            ))
+                        }
+                        _ => {
+                            return Err(ResimError::BadPose {
+                                tick,
+                                name: s.instrument.clone(),
+                            });
+                        }
+                    }
+                }
+            };
+            self.sim.set_pose(k, pose);
+        }
+        self.sim.tick();
+        Ok(())
+    }
+}
+
+/// The coordinate triple where `a` and `b` differ most, and by how much (m).
+fn largest_gap(a: &[f32], b: &[f32]) -> Option<(usize, f64)> {
+    a.chunks_exact(3)
+        .zip(b.chunks_exact(3))
+        .enumerate()
+        .map(|(i, (p, q))| {
+            let d = p
+                .iter()
+                .zip(q)
+                .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            (i, d)
+        })
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+}
+
+/// Largest coordinate difference, m.
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x as f64 - *y as f64).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Re-runs the recording's physics and compares every recorded tick (see the module
+/// documentation). `progress` is called after each compared tick with its number.
+pub fn resimulate(
+    recording: &Recording,
+    scene_dir: Option<&Path>,
+    progress: impl FnMut(u64),
+) -> Result<ResimReport, ResimError> {
+    resimulate_as(recording, recording.meta(), scene_dir, progress)
+}
+
+/// [`resimulate`] with the scene `meta` describes (its `scene_toml`, `scene` and
+/// `scene_dir`) in place of the recorded one: the same hands on another material or
+/// force model. The mesh must be the recorded one.
+pub fn resimulate_as(
+    recording: &Recording,
+    meta: &RecordingMeta,
+    scene_dir: Option<&Path>,
+    mut progress: impl FnMut(u64),
+) -> Result<ResimReport, ResimError> {
+    let started = Instant::now();
+    let rest = recording
+        .scene()?
+        .rest_surface
+        .map(|s| s.positions)
+        .unwrap_or_default();
+    let mut resim = Resimulator::new(meta, &rest, scene_dir)?;
+    // The states are small (a pose, a model and a force per instrument and tick);
+    // the surfaces are not, and are streamed.
+    let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
+    for s in recording.instrument_states()? {
+        states.entry(s.message.tick).or_default().push(s.message);
+    }
+    let mut report = ResimReport::default();
+    let mut last = 0u64;
+    for m in recording.messages() {
+        let Recorded::Surface(surface) = m?.message else {
+            continue;
+        };
+        if surface.tick <= last {
+            return Err(ResimError::OutOfOrder {
+                tick: surface.tick,
+                after: last,
+            });
+        }
+        // Ticks the recorder lost: step through them holding the poses.
+        while resim.sim.tick + 1 < surface.tick {
+            let missing = resim.sim.tick + 1;
+            let poses = states.get(&missing).map(Vec::as_slice).unwrap_or(&[]);
+            if poses.is_empty() {
+                report.missing_ticks += 1;
+                report.first_missing_tick.get_or_insert(missing);
+            }
+            resim.step(poses)?;
+            report.steps += 1;
+        }
+        let recorded = states.remove(&surface.tick).unwrap_or_default();
+        if recorded.is_empty() {
+            report.missing_ticks += 1;
+            report.first_missing_tick.get_or_insert(surface.tick);
+        }
+        resim.step(&recorded)?;
+        report.steps += 1;
+        last = surface.tick;
+        compare(&resim.sim, &surface, &recorded, &mut report);
+        progress(surface.tick);
+    }
+    report.sim_time_s = resim.sim.time;
+    report.elapsed_s = started.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Adds one tick's differences to the report.
+fn compare(
+    sim: &Simulation,
+    surface: &v1::SurfaceFrame,
+    states: &[v1::InstrumentState],
+    report: &mut ResimReport,
+) {
+    report.ticks_compared += 1;
+    let now = surface_positions(sim);
+    let d = if now.len() == surface.positions.len() {
+        max_abs_diff(&now, &surface.positions)
+    } else {
+        f64::INFINITY
+    };
+    if d > report.max_surface_deviation_m || report.worst_surface_tick.is_none() && d > 0.0 {
+        report.max_surface_deviation_m = d;
+        report.worst_surface_tick = Some(surface.tick);
+    }
+    for s in states {
+        let Some(k) = sim.instruments.iter().position(|i| i.name == s.instrument) else {
+            continue;
+        };
+        let again = crate::session::describe::instrument_state(sim, k, None, None);
+        let f = |s: &v1::InstrumentState| {
+            s.force
+                .as_ref()
+                .and_then(|f| f.force.as_ref())
+                .map(|v| Vector3::new(v.x, v.y, v.z))
+                .unwrap_or_else(Vector3::zeros)
+        };
+        let df = (f(s) - f(&again)).norm();
+        report.max_force_deviation_n = report.max_force_deviation_n.max(df);
+        if s.held_vertex_count != again.held_vertex_count || s.contact != again.contact {
+            report.contact_mismatches += 1;
+        }
+    }
+}
