@@ -198,6 +198,12 @@ pub struct LoadArgs {
     /// Surface frame rate the stations ask for, Hz (default: the mechanics rate).
     #[arg(long, value_name = "HZ", value_parser = positive_rate)]
     pub frame_rate: Option<f64>,
+    /// Scene of the session created (default: the server's default scene).
+    #[arg(long, value_name = "NAME", conflicts_with = "session")]
+    pub scene: Option<String>,
+    /// Record the session created, or not (default: as its scene says).
+    #[arg(long, value_name = "BOOL", conflicts_with = "session")]
+    pub record: Option<bool>,
 }
 
 fn number(s: &str) -> Result<f64, String> {

@@ -48,6 +48,10 @@ pub struct LoadConfig {
     pub duration: Duration,
     /// Surface frame rate the stations ask for; `None` for the mechanics rate.
     pub surface_frame_rate_hz: Option<f64>,
+    /// Scene of a created session; `None`: the server's default.
+    pub scene: Option<String>,
+    /// Whether a created session is recorded; `None`: as its scene says.
+    pub record: Option<bool>,
 }
 
 /// Running totals over all stations, for live display.
@@ -133,6 +137,14 @@ pub struct LoadSummary {
     pub poses_accepted: u64,
     /// Poses the session rejected since it started.
     pub poses_rejected: u64,
+    /// Whether the session was being recorded (it names a file).
+    pub recorded: bool,
+    /// Items the session's recorder left out (it fell behind).
+    pub recorder_dropped: u64,
+    /// Most items waiting for the recorder at once.
+    pub recorder_max_backlog: u64,
+    /// Longest time from a frame's publication to its being written, ms.
+    pub recorder_max_lag_ms: f64,
 }
 
 impl LoadSummary {
@@ -148,8 +160,8 @@ impl LoadSummary {
 
     /// The header of the table [`markdown_row`](Self::markdown_row) fills.
     pub fn markdown_header() -> String {
-        "| stations | posing | pose Hz | s | frames/station min | mean | latency p50 ms | p99 ms | p99.9 ms | missed deadlines | tick p50 ms | tick p99 ms | poses accepted | rejected |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "| stations | posing | pose Hz | s | frames/station min | mean | latency p50 ms | p99 ms | p99.9 ms | missed deadlines | tick p50 ms | tick p99 ms | poses accepted | rejected | recorded | recorder dropped | recorder backlog max | recorder lag max ms |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|"
             .to_owned()
     }
 
@@ -157,7 +169,7 @@ impl LoadSummary {
     pub fn markdown_row(&self) -> String {
         let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
         format!(
-            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {:.2} |",
             self.stations,
             self.posing_stations,
             self.pose_rate_hz,
@@ -172,6 +184,10 @@ impl LoadSummary {
             self.tick_time_p99_ms,
             self.poses_accepted,
             self.poses_rejected,
+            if self.recorded { "yes" } else { "no" },
+            self.recorder_dropped,
+            self.recorder_max_backlog,
+            self.recorder_max_lag_ms,
         )
     }
 }
@@ -214,7 +230,11 @@ pub async fn run_load(
         ),
         None => (
             sessions
-                .create_session(CreateSessionRequest::default())
+                .create_session(CreateSessionRequest {
+                    scene: config.scene.clone().unwrap_or_default(),
+                    idle_timeout_s: None,
+                    record: config.record,
+                })
                 .await?
                 .into_inner(),
             true,
@@ -285,6 +305,10 @@ pub async fn run_load(
         tick_time_p99_ms: 0.0,
         poses_accepted: 0,
         poses_rejected: 0,
+        recorded: false,
+        recorder_dropped: 0,
+        recorder_max_backlog: 0,
+        recorder_max_lag_ms: 0.0,
     };
     for (index, result) in results {
         match result {
@@ -316,6 +340,10 @@ pub async fn run_load(
     summary.tick_time_p99_ms = info.tick_time_p99_ms;
     summary.poses_accepted = info.poses_accepted;
     summary.poses_rejected = info.poses_rejected;
+    summary.recorded = info.recording_file.is_some();
+    summary.recorder_dropped = info.recorder_dropped;
+    summary.recorder_max_backlog = info.recorder_max_backlog;
+    summary.recorder_max_lag_ms = info.recorder_max_lag_ms;
     if created {
         sessions
             .close_session(CloseSessionRequest {
@@ -492,6 +520,10 @@ mod tests {
             tick_time_p99_ms: 4.0,
             poses_accepted: 5000,
             poses_rejected: 0,
+            recorded: true,
+            recorder_dropped: 0,
+            recorder_max_backlog: 3,
+            recorder_max_lag_ms: 0.5,
         };
         let header = LoadSummary::markdown_header();
         let columns = header.lines().next().unwrap().matches('|').count();

@@ -449,6 +449,8 @@ async fn load(args: LoadArgs) -> Result<(), BoxError> {
         pose_rate_hz: args.pose_rate,
         duration: args.seconds,
         surface_frame_rate_hz: args.frame_rate,
+        scene: args.scene.clone(),
+        record: args.record,
     };
     println!(
         "load: {} stations for {:.1} s at {}; the first ones (one per free instrument) send poses at {} Hz, the others only receive",

@@ -731,3 +731,89 @@ async fn a_session_is_recorded_through_a_real_server() {
     assert!(resim.is_exact(), "{resim:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stations_and_observers_joining_after_the_recorder_failed_are_told() {
+    // The recordings "directory" is a file: the recorder cannot create its file.
+    let blocker = std::env::temp_dir().join(format!("laparo-blocker-{}", std::process::id()));
+    std::fs::write(&blocker, b"not a directory").unwrap();
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(blocker.join("recordings")),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    // Wait until the failure is known (nobody was connected to hear it live).
+    let error = tokio::time::timeout(WAIT, async {
+        loop {
+            let info = sessions
+                .get_session(v1::GetSessionRequest {
+                    session_id: info.session_id.clone(),
+                })
+                .await
+                .unwrap()
+                .into_inner();
+            if let Some(e) = info.recording_error {
+                break (e, info.recording_file);
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("the recorder's failure shows in the session's info");
+    assert!(error.0.contains("recordings"), "{}", error.0);
+    assert_eq!(error.1, None, "no file is named when none was created");
+
+    let is_recorder_error = |m: &v1::ServerMessage| {
+        matches!(&m.kind, Some(v1::server_message::Kind::Event(e))
+            if e.kind == v1::EventKind::RecorderError as i32 && e.detail.contains(&error.0))
+    };
+    let (mut a, _) = join(ch.clone(), None, &info.session_id, &["left"])
+        .await
+        .unwrap();
+    // Told right after Joined, before any frame.
+    let first = a.rx.message().await.unwrap().unwrap();
+    assert!(is_recorder_error(&first), "{first:?}");
+    // And the session goes on: frames keep coming.
+    assert!(
+        wait_for(&mut a.rx, WAIT, |m| matches!(
+            m.kind,
+            Some(v1::server_message::Kind::SurfaceFrame(_))
+        ))
+        .await
+        .is_some()
+    );
+
+    let mut observer = v1::observe_client::ObserveClient::new(ch.clone())
+        .observe(v1::ObserveRequest {
+            session_id: info.session_id.clone(),
+            frame_rate_hz: None,
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let scene = observer.message().await.unwrap().unwrap();
+    assert!(matches!(
+        scene.kind,
+        Some(v1::observe_message::Kind::Scene(_))
+    ));
+    let told = observer.message().await.unwrap().unwrap();
+    assert!(
+        matches!(&told.kind, Some(v1::observe_message::Kind::Event(e))
+            if e.kind == v1::EventKind::RecorderError as i32),
+        "{told:?}"
+    );
+    drop((a, observer));
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_file(&blocker);
+}

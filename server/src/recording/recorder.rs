@@ -99,6 +99,13 @@ pub struct RecorderStats {
     pub errors: AtomicU64,
     /// Messages written to the file.
     pub written: AtomicU64,
+    /// Items taken off the channel and written.
+    pub processed: AtomicU64,
+    /// Most items waiting in the channel, seen when one was handed over.
+    pub max_backlog: AtomicU64,
+    /// Longest time from a frame's publication to its being written, µs: how far
+    /// behind the live session the file has been.
+    pub max_lag_us: AtomicU64,
 }
 
 /// State the recorder thread shares with the session side.
@@ -178,7 +185,9 @@ impl Recorder {
         let stats = &self.shared.stats;
         match self.tx.try_send(Msg::Item(item)) {
             Ok(()) => {
-                stats.sent.fetch_add(1, Ordering::Relaxed);
+                let sent = stats.sent.fetch_add(1, Ordering::Relaxed) + 1;
+                let backlog = sent.saturating_sub(stats.processed.load(Ordering::Relaxed));
+                stats.max_backlog.fetch_max(backlog, Ordering::Relaxed);
                 self.lagging.store(false, Ordering::Relaxed);
                 None
             }
@@ -223,6 +232,24 @@ impl Recorder {
 
     pub fn stats(&self) -> &RecorderStats {
         &self.shared.stats
+    }
+
+    /// What a client arriving now should be told: that the recorder stopped, that
+    /// items were left out, both or nothing. Live streams were told when it
+    /// happened; a station or observer joining later learns it from this.
+    pub fn standing_reports(&self) -> Vec<Report> {
+        let mut out = Vec::new();
+        let dropped_total = self.shared.stats.dropped.load(Ordering::Relaxed);
+        if dropped_total > 0 {
+            out.push(Report::Lagging {
+                dropped_total,
+                detail: "earlier items were".into(),
+            });
+        }
+        if let Some(error) = self.error() {
+            out.push(Report::Failed { error });
+        }
+        out
     }
 
     /// The error that stopped the recorder, if any.
@@ -304,9 +331,14 @@ fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared)
                 }
                 match &item {
                     Item::Pose { received, pose } => sink.write_pose(*received, pose)?,
-                    Item::Frame { frame, wall } => sink.write_frame(frame, *wall)?,
+                    Item::Frame { frame, wall } => {
+                        sink.write_frame(frame, *wall)?;
+                        let lag = wall.elapsed().map_or(0, |d| d.as_micros() as u64);
+                        shared.stats.max_lag_us.fetch_max(lag, Ordering::Relaxed);
+                    }
                     Item::Event { event, wall } => sink.write_event(event, *wall)?,
                 }
+                shared.stats.processed.fetch_add(1, Ordering::Relaxed);
             }
             sink.flush_if_due()
         })();

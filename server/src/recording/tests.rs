@@ -481,6 +481,22 @@ fn a_full_channel_is_counted_and_reported_never_silent() {
         sent + dropped,
         offered + (sent - sent_before) + (dropped - dropped_first)
     );
+    // Every item handed over was written; at most the channel's one item plus the
+    // one being written ever waited.
+    assert_eq!(
+        stats.processed.load(std::sync::atomic::Ordering::Relaxed),
+        sent
+    );
+    let backlog = stats.max_backlog.load(std::sync::atomic::Ordering::Relaxed);
+    assert!((1..=2).contains(&backlog), "{backlog}");
+    // A client arriving now is told items were left out, with the total.
+    assert_eq!(
+        recorder.standing_reports(),
+        vec![Report::Lagging {
+            dropped_total: dropped,
+            detail: "earlier items were".into()
+        }]
+    );
     let rec = Recording::open(&path).unwrap();
     let events = rec.events().unwrap();
     let surfaces = rec.surfaces().unwrap().len() as u64;

@@ -45,6 +45,11 @@ impl v1::observe_server::Observe for ObserveService {
             )),
         };
         let _ = tx.try_send(Ok(scene));
+        for event in session.recording_events() {
+            let _ = tx.try_send(Ok(v1::ObserveMessage {
+                kind: Some(v1::observe_message::Kind::Event(event)),
+            }));
+        }
         session.roster().observers += 1;
         let observer = Observer(session.clone());
         let connected = session.connect();

@@ -150,6 +150,11 @@ impl v1::station_server::Station for StationService {
             })),
         };
         let _ = tx.try_send(Ok(joined));
+        for event in session.recording_events() {
+            let _ = tx.try_send(Ok(v1::ServerMessage {
+                kind: Some(v1::server_message::Kind::Event(event)),
+            }));
+        }
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
         tokio::spawn(pump(session.clone(), tx.clone(), rate, done));

@@ -351,6 +351,9 @@ impl Session {
         let roster = self.roster();
         let s = &self.stats;
         let bits = |a: &AtomicU64| f64::from_bits(a.load(Ordering::Relaxed));
+        let recorder = |f: fn(&crate::recording::RecorderStats) -> u64| {
+            self.recorder.as_ref().map_or(0, |r| f(r.stats()))
+        };
         v1::SessionInfo {
             session_id: self.id.clone(),
             scene: self.scene.name.clone(),
@@ -381,7 +384,35 @@ impl Session {
             tick_time_p99_ms: bits(&s.tick_p99_bits),
             poses_accepted: s.poses_accepted.load(Ordering::Relaxed),
             poses_rejected: s.poses_rejected.load(Ordering::Relaxed),
+            recording_error: self.recorder.as_ref().and_then(|r| r.error()),
+            recorder_dropped: recorder(|r| r.dropped.load(Ordering::Relaxed)),
+            recorder_max_backlog: recorder(|r| r.max_backlog.load(Ordering::Relaxed)),
+            recorder_max_lag_ms: recorder(|r| r.max_lag_us.load(Ordering::Relaxed)) as f64 * 1e-3,
         }
+    }
+
+    /// What a station or observer arriving now is told about the recording
+    /// before anything else: whether it stopped, whether items were left out. Live
+    /// streams were told when it happened.
+    pub fn recording_events(&self) -> Vec<v1::Event> {
+        let Some(r) = &self.recorder else {
+            return Vec::new();
+        };
+        let (tick, sim_time_s) = (
+            self.stats.tick.load(Ordering::Relaxed),
+            f64::from_bits(self.stats.sim_time_bits.load(Ordering::Relaxed)),
+        );
+        r.standing_reports()
+            .into_iter()
+            .map(|report| v1::Event {
+                tick,
+                sim_time_s,
+                kind: report.kind() as i32,
+                station_id: None,
+                instrument: None,
+                detail: report.detail(),
+            })
+            .collect()
     }
 
     /// Counts a stream as connected until the guard drops.
