@@ -139,8 +139,8 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
 
 /// `laparo replay FILE`: the recording's summary.
 fn replay(args: ReplayArgs) -> Result<(), BoxError> {
-    use laparo_server::recording::{Recording, summarize};
-    let recording = Recording::open(&args.file)?;
+    use laparo_server::recording::summarize;
+    let recording = open_recording(&args.file)?;
     let s = summarize(&recording)?;
     let meta = recording.meta();
     println!(
@@ -170,10 +170,27 @@ fn replay(args: ReplayArgs) -> Result<(), BoxError> {
     Ok(())
 }
 
+/// Opens a recording; one cut short (a killed server, a session still recording)
+/// is read up to its last complete chunk, with a note saying so.
+fn open_recording(path: &std::path::Path) -> Result<laparo_server::recording::Recording, BoxError> {
+    let (recording, recovery) = laparo_server::recording::Recording::open_partial(path)?;
+    if let Some(r) = recovery {
+        eprintln!(
+            "note: {} ends without its summary (a killed server, or still being recorded); \
+             read its {} complete chunks, {} bytes after them left out. \
+             `laparo recordings recover` rewrites it into a complete file.",
+            path.display(),
+            r.chunks,
+            r.bytes_dropped
+        );
+    }
+    Ok(recording)
+}
+
 /// `laparo resim`: the recorded poses through the recorded (or another) scene.
 fn resim(args: ResimArgs) -> Result<(), BoxError> {
-    use laparo_server::recording::{Recording, resimulate_as};
-    let recording = Recording::open(&args.file)?;
+    use laparo_server::recording::resimulate_as;
+    let recording = open_recording(&args.file)?;
     let mut meta = recording.meta().clone();
     if let Some(scene) = &args.scene {
         meta.scene_toml =

@@ -175,12 +175,21 @@ async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverab
     assert!(matches!(err, ReadError::Truncated { .. }), "{err}");
     assert!(err.to_string().contains("recover"), "{err}");
 
+    // Read as it is, through a recovery in memory, and rewritten: the same.
+    let (partial, kept) = Recording::open_partial(&file).unwrap();
+    assert!(kept.is_some_and(|k| !k.was_complete));
+
     let fixed = dir.path().join("recovered.mcap");
     let recovery = recover(&file, &fixed).unwrap();
     assert!(recovery.messages > 0, "{recovery:?}");
     let rec = Recording::open(&fixed).unwrap();
     let surfaces = rec.surfaces().unwrap();
-    let last = surfaces.last().expect("some ticks were kept").message.sim_time_s;
+    assert_eq!(partial.surfaces().unwrap(), surfaces);
+    let last = surfaces
+        .last()
+        .expect("some ticks were kept")
+        .message
+        .sim_time_s;
     eprintln!(
         "killed at {newest:.3} s simulated (newest state seen); recovered up to {last:.3} s: \
          {} chunks, {} messages, {} bytes kept, {} left out",

@@ -14,6 +14,7 @@ use mcap::records::{MessageHeader, Record};
 use mcap::{MAGIC, Summary};
 
 use super::records::{Records, chunk_records};
+use super::recover::{Recovery, recover_bytes};
 
 use super::{
     FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE,
@@ -116,6 +117,28 @@ impl Recording {
             source,
         })?;
         Self::from_bytes(file, bytes)
+    }
+
+    /// [`open`](Self::open), but a file that ends without its summary (a killed
+    /// server, a session still being recorded) is read through a recovery in
+    /// memory: every complete chunk, none of the tail. The [`Recovery`] says what
+    /// was kept; `None` for a complete file. The file itself is not changed.
+    pub fn open_partial(path: &Path) -> Result<(Self, Option<Recovery>), ReadError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        // Cut short: it starts as an MCAP file and lacks the closing magic.
+        if !bytes.starts_with(MAGIC) || bytes.ends_with(MAGIC) {
+            return Self::from_bytes(file, bytes).map(|r| (r, None));
+        }
+        let (recovery, out) = recover_bytes(&file, &bytes, std::io::Cursor::new(Vec::new()))
+            .map_err(|e| ReadError::Corrupt {
+                file: file.clone(),
+                message: e.to_string(),
+            })?;
+        Self::from_bytes(file, out.into_inner()).map(|r| (r, Some(recovery)))
     }
 
     /// Checks a recording held in memory; `file` names it in errors.
