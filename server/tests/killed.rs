@@ -109,7 +109,7 @@ async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverab
     };
     let scene = joined.scene.unwrap();
     let left = &scene.instruments[0];
-    let trocar = left.trocar.clone().unwrap();
+    let trocar = left.trocar.unwrap();
     let rest = scene.rest_surface.unwrap().positions;
     // The front-most surface vertex (least y), approached along y.
     let front = rest
