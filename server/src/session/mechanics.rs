@@ -8,7 +8,7 @@ use std::time::{Duration, Instant, SystemTime};
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use super::describe::{contact_state, instrument_state, surface_positions};
+use super::describe::{ContactWatch, instrument_state, surface_positions};
 use super::{Frame, PoseIn, Session, SessionStats};
 use crate::engine::scene::Simulation;
 use crate::recording::{Item, Recorder, Report};
@@ -39,11 +39,6 @@ pub(super) fn spawn(m: Mechanics) -> std::io::Result<JoinHandle<()>> {
 }
 
 impl Mechanics {
-    /// Publishes an event and records it.
-    fn emit(&self, event: v1::Event) {
-        super::broadcast_event(self.recorder.as_deref(), &self.events, event);
-    }
-
     /// Tells the live streams what the recorder reported.
     fn report(&self, report: Option<Report>) {
         if let Some(report) = report {
@@ -65,7 +60,7 @@ impl Mechanics {
         let dt = Duration::from_secs_f64(self.sim.dt);
         let n = self.sim.instruments.len();
         let mut holders: Vec<Option<(u64, u64)>> = vec![None; n];
-        let mut contact = vec![v1::ContactState::None; n];
+        let mut contacts = ContactWatch::new(n);
         let mut tick_ms: Vec<f64> = Vec::with_capacity(256);
         let mut idle_since: Option<Instant> = None;
         let mut next = Instant::now();
@@ -100,29 +95,13 @@ impl Mechanics {
                     })
                     .collect(),
             };
-            for k in 0..n {
-                let now = contact_state(&self.sim, k);
-                let (was_in, is_in) = (
-                    contact[k] != v1::ContactState::None,
-                    now != v1::ContactState::None,
-                );
-                if was_in != is_in {
-                    let kind = if is_in {
-                        v1::EventKind::ContactBegan
-                    } else {
-                        v1::EventKind::ContactEnded
-                    };
-                    self.emit(v1::Event {
-                        tick: self.sim.tick,
-                        sim_time_s: self.sim.time,
-                        kind: kind as i32,
-                        station_id: holders[k].map(|h| h.0),
-                        instrument: Some(self.sim.instruments[k].name.clone()),
-                        detail: format!("{:?}", now),
-                    });
-                }
-                contact[k] = now;
-            }
+            let events = &self.events;
+            let recorder = self.recorder.as_deref();
+            contacts.update(
+                &self.sim,
+                |k| holders[k].map(|h| h.0),
+                |event| super::broadcast_event(recorder, events, event),
+            );
             let frame = Arc::new(frame);
             if let Some(r) = &self.recorder {
                 let report = r.offer(Item::Frame {
