@@ -24,10 +24,14 @@
 //!   mechanics thread never waits on; drops and failures are counted and reported.
 //! - [`reader`]: opens a recording, checks its version, decodes its messages.
 //! - [`summary`]: what a reviewer wants first: duration, path lengths, forces.
+//! - [`list`]: what a recordings directory holds: session, scene, start,
+//!   duration, size, and whether a file is finished, still being written or was
+//!   cut short.
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
 //! - [`recover`]: rewrites the file a killed server left into a valid, indexed one.
 
+pub mod list;
 pub mod reader;
 pub mod recorder;
 pub mod records;
@@ -35,6 +39,7 @@ pub mod recover;
 pub mod summary;
 pub mod writer;
 
+pub use list::{FileState, Listed, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};
