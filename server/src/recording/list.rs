@@ -51,7 +51,8 @@ pub struct Listed {
 }
 
 /// Opens the recording at `path` as far as it goes and says how its file ends;
-/// `is_recording` tells whether a session is still writing a file.
+/// `is_recording` tells whether a session is still writing a file. Errors name the
+/// file by its name alone: they go to clients, which know no directory.
 ///
 /// A file read unfinished and not being written is read once more: its session may
 /// have finished it between the read and the question.
@@ -59,14 +60,26 @@ pub fn open(
     path: &Path,
     is_recording: impl Fn(&Path) -> bool,
 ) -> Result<(Recording, FileState), ReadError> {
-    let recording = Recording::open_unfinished(path)?;
+    let read = || {
+        let file = path
+            .file_name()
+            .unwrap_or(path.as_os_str())
+            .to_string_lossy()
+            .into_owned();
+        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        Recording::from_unfinished_bytes(file, bytes)
+    };
+    let recording = read()?;
     if recording.is_complete() {
         return Ok((recording, FileState::Complete));
     }
     if is_recording(path) {
         return Ok((recording, FileState::InProgress));
     }
-    let again = Recording::open_unfinished(path)?;
+    let again = read()?;
     let state = if again.is_complete() {
         FileState::Complete
     } else {

@@ -126,22 +126,18 @@ pub fn file_name(name: &str) -> Result<&str, Status> {
     Ok(name)
 }
 
-/// The status a recording that cannot be read gets.
+/// The status a recording that cannot be read gets (the error names the file).
 pub fn read_status(name: &str, e: &ReadError) -> Status {
     match e {
         ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
             Status::not_found(format!("no recording `{name}`"))
         }
-        ReadError::Corrupt { .. } | ReadError::Decode { .. } => {
-            Status::data_loss(format!("recording `{name}`: {e}"))
-        }
+        ReadError::Corrupt { .. } | ReadError::Decode { .. } => Status::data_loss(e.to_string()),
         ReadError::Io { .. }
         | ReadError::NotMcap { .. }
         | ReadError::Truncated { .. }
         | ReadError::NotARecording { .. }
-        | ReadError::UnsupportedVersion { .. } => {
-            Status::failed_precondition(format!("recording `{name}`: {e}"))
-        }
+        | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(e.to_string()),
     }
 }
 
