@@ -38,7 +38,9 @@ pub enum Command {
     /// session's tick times as a markdown table row.
     Load(LoadArgs),
     /// Summarise a recorded session: duration, ticks, per-instrument path length,
-    /// time in contact, max and mean force, largest force jump, events.
+    /// time in contact, max and mean force, largest force jump, events. With
+    /// `--server`, watch the server play one of its recordings back instead, as
+    /// `observe` watches a session.
     Replay(ReplayArgs),
     /// The recordings on disk.
     #[command(subcommand)]
@@ -68,19 +70,62 @@ pub struct ResimArgs {
 /// `laparo replay`.
 #[derive(Args, Debug, Clone)]
 pub struct ReplayArgs {
-    /// A session recording (.mcap).
+    /// A session recording (.mcap); with `--server`, the name of one of the server's
+    /// recordings (as `laparo recordings list --server` shows it).
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
+    #[command(flatten)]
+    pub remote: RemoteArgs,
+    /// Playback speed factor: 2 plays twice as fast (the server takes 0.01 to 100).
+    #[arg(long, value_name = "S", requires = "server", value_parser = speed)]
+    pub speed: Option<f64>,
+    /// Where to start, s of simulated time from the start of the recording.
+    #[arg(long, value_name = "T", requires = "server", value_parser = offset)]
+    pub from: Option<f64>,
+}
+
+/// A server to ask instead of reading files here.
+#[derive(Args, Debug, Clone, Default)]
+pub struct RemoteArgs {
+    /// Server URL, http://host:port or https://host:port.
+    #[arg(long, value_name = "URL")]
+    pub server: Option<String>,
+    /// Bearer token sent with every call.
+    #[arg(long, value_name = "TOKEN", requires = "server")]
+    pub token: Option<String>,
+    /// CA certificate (PEM) to trust for an https server.
+    #[arg(long, value_name = "FILE", requires = "server")]
+    pub ca: Option<PathBuf>,
+}
+
+impl RemoteArgs {
+    /// The connection settings, when a server is given.
+    pub fn connect_config(&self) -> Option<ConnectConfig> {
+        self.server.as_ref().map(|url| ConnectConfig {
+            token: self.token.clone(),
+            ca_file: self.ca.clone(),
+            ..ConnectConfig::new(url.clone())
+        })
+    }
 }
 
 /// `laparo recordings …`.
 #[derive(Subcommand, Debug, Clone)]
 pub enum RecordingsCommand {
-    /// List the recordings of a directory: session, scene, start, duration, size.
+    /// List the recordings of a directory, or of a server with `--server`: session,
+    /// scene, start, duration, size, and whether each is complete or still being
+    /// recorded.
     List {
         /// The recordings directory.
-        #[arg(long, value_name = "DIR", default_value = "recordings")]
+        #[arg(
+            long,
+            value_name = "DIR",
+            default_value = "recordings",
+            conflicts_with = "server"
+        )]
         dir: PathBuf,
+        #[command(flatten)]
+        remote: RemoteArgs,
     },
     /// Rewrite a truncated recording (a server killed mid-session) into a valid,
     /// indexed one, keeping every complete chunk.
@@ -236,6 +281,26 @@ pub fn haptic_rate(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A replay speed factor: finite and > 0.
+pub fn speed(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v}: a speed factor must be finite and > 0"))
+    }
+}
+
+/// A start offset in seconds: finite and ≥ 0.
+pub fn offset(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} s: an offset must be finite and ≥ 0"))
+    }
+}
+
 /// A duration in seconds: finite and > 0.
 pub fn seconds(s: &str) -> Result<Duration, String> {
     let v = number(s)?;
@@ -348,6 +413,51 @@ mod tests {
     }
 
     #[test]
+    fn replay_and_list_read_files_here_or_ask_a_server() {
+        let Command::Replay(a) = parse(&["replay", "r.mcap"]).unwrap().command else {
+            panic!("not replay")
+        };
+        assert!(a.remote.connect_config().is_none());
+        let Command::Replay(a) = parse(&[
+            "replay",
+            "r.mcap",
+            "--server",
+            "http://h:1",
+            "--speed",
+            "4",
+            "--from",
+            "1.5",
+            "--token",
+            "t0k",
+        ])
+        .unwrap()
+        .command
+        else {
+            panic!("not replay")
+        };
+        assert_eq!((a.speed, a.from), (Some(4.0), Some(1.5)));
+        let c = a.remote.connect_config().unwrap();
+        assert_eq!(
+            (c.url.as_str(), c.token.as_deref()),
+            ("http://h:1", Some("t0k"))
+        );
+        let Command::Recordings(RecordingsCommand::List { dir, remote }) =
+            parse(&["recordings", "list"]).unwrap().command
+        else {
+            panic!("not recordings list")
+        };
+        assert_eq!((dir, remote.server), (PathBuf::from("recordings"), None));
+        let Command::Recordings(RecordingsCommand::List { remote, .. }) =
+            parse(&["recordings", "list", "--server", "http://h:1"])
+                .unwrap()
+                .command
+        else {
+            panic!("not recordings list")
+        };
+        assert_eq!(remote.server.as_deref(), Some("http://h:1"));
+    }
+
+    #[test]
     fn bad_values_are_usage_errors() {
         let base = ["station", "--server", "http://h:1", "--session", "s"];
         for bad in [
@@ -398,6 +508,23 @@ mod tests {
         ])
         .unwrap_err();
         assert_eq!(e.kind(), ErrorKind::ValueValidation);
+        for bad in [
+            &["replay", "f.mcap", "--speed", "2"][..],
+            &["replay", "f.mcap", "--server", "http://h:1", "--speed", "0"],
+            &[
+                "replay",
+                "f.mcap",
+                "--server",
+                "http://h:1",
+                "--speed",
+                "nan",
+            ],
+            &["replay", "f.mcap", "--server", "http://h:1", "--from=-1"],
+            &["recordings", "list", "--token", "t"],
+            &["recordings", "list", "--dir", "d", "--server", "http://h:1"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?}");
+        }
         let Command::Demo(demo) = parse(&["demo"]).unwrap().command else {
             panic!("demo parses");
         };

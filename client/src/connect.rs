@@ -16,6 +16,7 @@ use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
 use tonic::{Request, Status};
 
 use crate::proto::v1::observe_client::ObserveClient;
+use crate::proto::v1::recordings_client::RecordingsClient;
 use crate::proto::v1::scenes_client::ScenesClient;
 use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::station_client::StationClient;
@@ -121,6 +122,11 @@ impl Connection {
     /// A client of the `Scenes` service.
     pub fn scenes(&self) -> ScenesClient<AuthChannel> {
         ScenesClient::with_interceptor(self.channel.clone(), self.auth.clone())
+    }
+
+    /// A client of the `Recordings` service.
+    pub fn recordings(&self) -> RecordingsClient<AuthChannel> {
+        RecordingsClient::with_interceptor(self.channel.clone(), self.auth.clone())
     }
 }
 

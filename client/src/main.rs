@@ -12,8 +12,11 @@ use laparo_client::cli::{
     Cli, Command, DemoArgs, LoadArgs, ObserveArgs, RecordingsCommand, ReplayArgs, ResimArgs,
     StationArgs,
 };
+use laparo_client::connect::ConnectConfig;
 use laparo_client::load::{LoadConfig, LoadSummary, run_load};
-use laparo_client::observe::{ObserveConfig, ObserveReport, event_line, run_observe};
+use laparo_client::observe::{
+    ObserveConfig, ObserveReport, ObserveSummary, event_line, run_observe,
+};
 use laparo_client::station::{StationConfig, StationProgress, StationSummary, run_station};
 use tokio::sync::watch;
 
@@ -42,8 +45,8 @@ fn main() -> ExitCode {
             Command::Station(args) => station(args).await,
             Command::Observe(args) => observe(args).await,
             Command::Load(args) => load(args).await,
-            Command::Replay(args) => replay(args),
-            Command::Recordings(command) => recordings(command),
+            Command::Replay(args) => replay(args).await,
+            Command::Recordings(command) => recordings(command).await,
             Command::Resim(args) => resim(args),
         }
     });
@@ -69,7 +72,7 @@ fn ctrl_c() -> std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>> {
 
 /// `laparo demo`: a server in this process, one station pressing the liver.
 async fn demo(args: DemoArgs) -> Result<(), BoxError> {
-    use laparo_client::connect::{ConnectConfig, connect};
+    use laparo_client::connect::connect;
     use laparo_server::service::{ServeConfig, serve};
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
     let url = format!("http://{}", listener.local_addr()?);
@@ -137,8 +140,12 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
     Ok(())
 }
 
-/// `laparo replay FILE`: the recording's summary.
-fn replay(args: ReplayArgs) -> Result<(), BoxError> {
+/// `laparo replay FILE`: the recording's summary; with `--server`, the server
+/// plays it back and this watches it.
+async fn replay(args: ReplayArgs) -> Result<(), BoxError> {
+    if let Some(connect) = args.remote.connect_config() {
+        return watch_replay(connect, &args).await;
+    }
     use laparo_server::recording::summarize;
     let recording = open_recording(&args.file)?;
     let s = summarize(&recording)?;
@@ -173,15 +180,13 @@ fn replay(args: ReplayArgs) -> Result<(), BoxError> {
 /// Opens a recording; one cut short (a killed server, a session still recording)
 /// is read up to its last complete chunk, with a note saying so.
 fn open_recording(path: &std::path::Path) -> Result<laparo_server::recording::Recording, BoxError> {
-    let (recording, recovery) = laparo_server::recording::Recording::open_partial(path)?;
-    if let Some(r) = recovery {
+    let recording = laparo_server::recording::Recording::open_unfinished(path)?;
+    if !recording.is_complete() {
         eprintln!(
             "note: {} ends without its summary (a killed server, or still being recorded); \
-             read its {} complete chunks, {} bytes after them left out. \
-             `laparo recordings recover` rewrites it into a complete file.",
+             read up to its last complete chunk. `laparo recordings recover` rewrites it \
+             into a complete file.",
             path.display(),
-            r.chunks,
-            r.bytes_dropped
         );
     }
     Ok(recording)
@@ -251,39 +256,90 @@ fn resim(args: ResimArgs) -> Result<(), BoxError> {
     Ok(())
 }
 
+/// `laparo replay FILE --server URL`: the server's recording FILE, played back.
+async fn watch_replay(connect: ConnectConfig, args: &ReplayArgs) -> Result<(), BoxError> {
+    use laparo_client::proto::v1::{ReplayMode, ReplayRequest};
+    let file = args
+        .file
+        .to_str()
+        .ok_or_else(|| format!("{}: not a UTF-8 file name", args.file.display()))?
+        .to_string();
+    let request = ReplayRequest {
+        file: file.clone(),
+        speed: args.speed,
+        start_offset_s: args.from,
+        mode: ReplayMode::Recorded as i32,
+    };
+    let config = ObserveConfig {
+        connect,
+        stop: Some(ctrl_c()),
+        ..ObserveConfig::replay(args.remote.server.clone().unwrap_or_default(), request)
+    };
+    let what = format!(
+        "replaying {file} at {}x from {} s",
+        args.speed.unwrap_or(1.0),
+        args.from.unwrap_or(0.0)
+    );
+    let summary = run_observe(config, print_report(what)).await?;
+    print_watch_summary(&summary, "the recording ended");
+    Ok(())
+}
+
 /// `laparo recordings list|recover`.
-fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
-    use laparo_server::recording::{Recording, recover, summarize};
+async fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
+    use laparo_server::recording::{FileState, list, recover};
     match command {
-        RecordingsCommand::List { dir } => {
-            let mut files: Vec<_> = std::fs::read_dir(&dir)
-                .map_err(|e| format!("{}: {e}", dir.display()))?
-                .flatten()
-                .map(|e| e.path())
-                .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
-                .collect();
-            files.sort();
-            println!("| file | session | scene | start (unix s) | duration (s) | size (bytes) |");
-            println!("|---|---|---|---|---|---|");
-            for f in files {
-                let size = std::fs::metadata(&f).map(|m| m.len()).unwrap_or(0);
-                let name = f
-                    .file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .to_string();
-                match Recording::open(&f).and_then(|r| summarize(&r).map(|s| (r, s))) {
-                    Ok((r, s)) => {
-                        let m = r.meta();
-                        println!(
-                            "| {name} | {} | {} | {:.0} | {:.2} | {size} |",
-                            m.session_id,
-                            m.scene,
-                            m.start_unix_ns as f64 * 1e-9,
-                            s.duration_s
-                        );
-                    }
-                    Err(e) => println!("| {name} | — | — | — | {e} | {size} |"),
+        RecordingsCommand::List { dir, remote } => {
+            println!(
+                "| file | session | scene | start (unix s) | duration (s) | size (bytes) | state |"
+            );
+            println!("|---|---|---|---|---|---|---|");
+            if let Some(connect) = remote.connect_config() {
+                let connection = laparo_client::connect::connect(&connect).await?;
+                let listed = connection
+                    .recordings()
+                    .list_recordings(laparo_client::proto::v1::ListRecordingsRequest {})
+                    .await?
+                    .into_inner();
+                for r in listed.recordings {
+                    let start = r
+                        .start
+                        .map_or(0.0, |t| t.seconds as f64 + t.nanos as f64 * 1e-9);
+                    println!(
+                        "| {} | {} | {} | {start:.0} | {:.2} | {} | {} |",
+                        r.file,
+                        r.session_id,
+                        r.scene,
+                        r.duration_s,
+                        r.size_bytes,
+                        if r.in_progress {
+                            "in progress"
+                        } else {
+                            "complete"
+                        }
+                    );
+                }
+                return Ok(());
+            }
+            let listed = list(&dir, |_| false).map_err(|e| format!("{}: {e}", dir.display()))?;
+            for l in listed {
+                match &l.entry {
+                    Ok(e) => println!(
+                        "| {} | {} | {} | {:.0} | {:.2} | {} | {} |",
+                        l.file,
+                        e.session_id,
+                        e.scene,
+                        e.start_unix_ns as f64 * 1e-9,
+                        e.duration_s,
+                        l.size_bytes,
+                        match e.state {
+                            FileState::Complete => "complete",
+                            FileState::InProgress => "in progress",
+                            FileState::Unfinished =>
+                                "no footer: still being recorded, or cut short (`recordings recover` completes it)",
+                        }
+                    ),
+                    Err(e) => println!("| {} | — | — | — | — | {} | {e} |", l.file, l.size_bytes),
                 }
             }
             Ok(())
@@ -427,19 +483,29 @@ async fn observe(args: ObserveArgs) -> Result<(), BoxError> {
         stop: Some(ctrl_c()),
         ..ObserveConfig::new(args.server.server.clone(), args.session.clone())
     };
-    let summary = run_observe(config, |report| match report {
+    let summary = run_observe(config, print_report(format!("observing {}", args.session))).await?;
+    print_watch_summary(&summary, "the session closed");
+    Ok(())
+}
+
+/// Prints what an observe or replay stream reports; `what` says what is watched.
+fn print_report(what: String) -> impl FnMut(ObserveReport<'_>) {
+    move |report| match report {
         ObserveReport::Scene(scene) => {
             let s = scene.summary.clone().unwrap_or_default();
             let names: Vec<&str> = scene.instruments.iter().map(|i| i.name.as_str()).collect();
             println!(
-                "observing {}: scene {:?}, {} tetrahedra, mechanics {} Hz, instruments {:?}",
-                args.session, s.name, s.tetrahedron_count, s.mechanics_rate_hz, names
+                "{what}: scene {:?}, {} tetrahedra, mechanics {} Hz, instruments {:?}",
+                s.name, s.tetrahedron_count, s.mechanics_rate_hz, names
             );
         }
         ObserveReport::Status(line) => println!("{line}"),
         ObserveReport::Event(event) => println!("event  {}", event_line(event)),
-    })
-    .await?;
+    }
+}
+
+/// The last lines of an observe or replay run; `ended` says why the server ended it.
+fn print_watch_summary(summary: &ObserveSummary, ended: &str) {
     println!();
     println!(
         "watched {:.1} s: {} ticks, {} frames, {} states, {} events, max |force| {:.3} N{}",
@@ -450,12 +516,11 @@ async fn observe(args: ObserveArgs) -> Result<(), BoxError> {
         summary.events,
         summary.max_force_n,
         if summary.server_closed {
-            "; the session closed"
+            format!("; {ended}")
         } else {
-            ""
+            String::new()
         }
     );
-    Ok(())
 }
 
 async fn load(args: LoadArgs) -> Result<(), BoxError> {

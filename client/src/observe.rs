@@ -1,6 +1,8 @@
 //! An instructor's view of a live session: the `Observe.Observe` stream, condensed
 //! into one status line per second (tick, simulated time, which instruments touch
-//! the liver and with what force) and the events as they come.
+//! the liver and with what force) and the events as they come. A recording the
+//! server plays back (`Recordings.Replay`) is the same stream and is watched the
+//! same way.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -10,8 +12,8 @@ use tokio::time::MissedTickBehavior;
 
 use crate::connect::{ConnectConfig, connect};
 use crate::proto::v1::{
-    ContactState, Event, EventKind, InstrumentState, ObserveRequest, SceneDescription,
-    observe_message,
+    ContactState, Event, EventKind, InstrumentState, ObserveRequest, ReplayRequest,
+    SceneDescription, observe_message,
 };
 use crate::station::{StationError, StopSignal, TickCounter, after, force_magnitude, when_stopped};
 
@@ -30,6 +32,9 @@ pub struct ObserveConfig {
     pub duration: Option<Duration>,
     /// Stops watching when it completes.
     pub stop: Option<StopSignal>,
+    /// Watch this recording played back by the server instead of `session_id` (and
+    /// `frame_rate_hz`).
+    pub replay: Option<ReplayRequest>,
 }
 
 impl ObserveConfig {
@@ -41,6 +46,15 @@ impl ObserveConfig {
             frame_rate_hz: None,
             duration: None,
             stop: None,
+            replay: None,
+        }
+    }
+
+    /// Watch the server at `url` play `request`'s recording back, to its end.
+    pub fn replay(url: impl Into<String>, request: ReplayRequest) -> Self {
+        ObserveConfig {
+            replay: Some(request),
+            ..ObserveConfig::new(url, String::new())
         }
     }
 }
@@ -136,7 +150,8 @@ pub struct ObserveSummary {
     pub events: u64,
     /// Largest server force |F| on any instrument, N.
     pub max_force_n: f64,
-    /// Whether the server ended the stream (the session closed).
+    /// Whether the server ended the stream (the session closed, or the recording
+    /// played back ended).
     pub server_closed: bool,
 }
 
@@ -169,14 +184,19 @@ pub async fn run_observe(
         });
     }
     let connection = connect(&config.connect).await?;
-    let mut stream = connection
-        .observe()
-        .observe(ObserveRequest {
-            session_id: config.session_id.clone(),
-            frame_rate_hz: config.frame_rate_hz,
-        })
-        .await?
-        .into_inner();
+    let mut stream = match config.replay.take() {
+        Some(request) => connection.recordings().replay(request).await?,
+        None => {
+            connection
+                .observe()
+                .observe(ObserveRequest {
+                    session_id: config.session_id.clone(),
+                    frame_rate_hz: config.frame_rate_hz,
+                })
+                .await?
+        }
+    }
+    .into_inner();
     let t0 = Instant::now();
     let mut summary = ObserveSummary::default();
     let mut ticks = TickCounter::default();

@@ -165,7 +165,7 @@ pub enum StationError {
     #[error(transparent)]
     Connect(#[from] ConnectError),
     /// The server ended the call with a gRPC status.
-    #[error("server ended the station stream with {code:?}: {message}")]
+    #[error("the server ended the stream with {code:?}: {message}")]
     Status { code: tonic::Code, message: String },
     /// The server broke the protocol.
     #[error("protocol error: {0}")]

@@ -176,8 +176,8 @@ async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverab
     assert!(err.to_string().contains("recover"), "{err}");
 
     // Read as it is, through a recovery in memory, and rewritten: the same.
-    let (partial, kept) = Recording::open_partial(&file).unwrap();
-    assert!(kept.is_some_and(|k| !k.was_complete));
+    let partial = Recording::open_unfinished(&file).unwrap();
+    assert!(!partial.is_complete());
 
     let fixed = dir.path().join("recovered.mcap");
     let recovery = recover(&file, &fixed).unwrap();

@@ -2,6 +2,7 @@
 //! session, every class of bad input, a station dropping and rejoining, roles, health
 //! and reflection, and shutdown with streams open.
 
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use laparo_proto::v1;
@@ -656,16 +657,27 @@ async fn an_idle_session_closes_itself() {
     server.shutdown().await.unwrap();
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_session_is_recorded_through_a_real_server() {
-    use laparo_server::recording::Recording;
-    let dir = std::env::temp_dir().join(format!("laparo-rec-{}", std::process::id()));
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
+/// A fresh directory for a test's recordings.
+fn recordings_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("laparo-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A session recorded through the server.
+struct Recorded {
+    /// The recording's path.
+    file: PathBuf,
+    /// The session as it closed.
+    closed: v1::SessionInfo,
+    joined: v1::Joined,
+}
+
+/// Records a session of the default scene in `dir`: a station presses the liver
+/// with the left instrument until it holds tissue and the session has run
+/// `at_least_s` of simulated time, leaves, and the session is closed (which
+/// finishes the file).
+async fn record_press(ch: &Channel, dir: &Path, at_least_s: f64) -> Recorded {
     let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
     let info = sessions
         .create_session(v1::CreateSessionRequest {
@@ -691,6 +703,23 @@ async fn a_session_is_recorded_through_a_real_server() {
         .await
         .is_some()
     );
+    let get = v1::GetSessionRequest {
+        session_id: info.session_id.clone(),
+    };
+    tokio::time::timeout(WAIT, async {
+        while sessions
+            .get_session(get.clone())
+            .await
+            .unwrap()
+            .into_inner()
+            .sim_time_s
+            < at_least_s
+        {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    })
+    .await
+    .expect("the session runs");
     drop(a);
     let closed = sessions
         .close_session(v1::CloseSessionRequest {
@@ -702,9 +731,31 @@ async fn a_session_is_recorded_through_a_real_server() {
         .into_inner()
         .session
         .unwrap();
-    // Shutting down waits for every mechanics thread, which finishes the file.
-    server.shutdown().await.unwrap();
+    Recorded {
+        file,
+        closed,
+        joined,
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_session_is_recorded_through_a_real_server() {
+    use laparo_server::recording::Recording;
+    let dir = recordings_dir("rec");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let Recorded {
+        file,
+        closed,
+        joined,
+    } = record_press(&ch, &dir, 0.0).await;
+    // Closing waited for the mechanics thread, which finished the file.
     let recording = Recording::open(&file).unwrap();
+    server.shutdown().await.unwrap();
     let surfaces = recording.surfaces().unwrap();
     let poses = recording.poses().unwrap();
     assert!(
@@ -730,6 +781,549 @@ async fn a_session_is_recorded_through_a_real_server() {
     assert_eq!(resim.ticks_compared, surfaces.len() as u64);
     assert!(resim.is_exact(), "{resim:?}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Simulated time of a replayed message, s (none for the scene).
+fn sim_time(m: &v1::ObserveMessage) -> Option<f64> {
+    use v1::observe_message::Kind as O;
+    match m.kind.as_ref()? {
+        O::Scene(_) => None,
+        O::SurfaceFrame(f) => Some(f.sim_time_s),
+        O::InstrumentState(s) => Some(s.sim_time_s),
+        O::Event(e) => Some(e.sim_time_s),
+    }
+}
+
+/// What a recording's file holds for a replay, in file order: its surface frames,
+/// instrument states and events as observe messages, with their simulated times.
+fn recorded_messages(
+    recording: &laparo_server::recording::Recording,
+) -> Vec<(f64, v1::ObserveMessage)> {
+    use laparo_server::recording::Recorded as R;
+    use v1::observe_message::Kind as O;
+    recording
+        .messages()
+        .filter_map(|m| {
+            let kind = match m.unwrap().message {
+                R::Surface(f) => O::SurfaceFrame(f),
+                R::Instrument(s) => O::InstrumentState(s),
+                R::Event(e) => O::Event(e),
+                R::Scene(_) | R::Pose(_) => return None,
+            };
+            let m = v1::ObserveMessage { kind: Some(kind) };
+            Some((sim_time(&m).unwrap(), m))
+        })
+        .collect()
+}
+
+/// What a replay from `offset` sends after the scene: the newest tick at or before
+/// the offset (its surface and states) and the events stamped at the offset, then
+/// everything from the first message after the offset on, in file order.
+fn expected_from(file: &[(f64, v1::ObserveMessage)], offset: f64) -> Vec<v1::ObserveMessage> {
+    use v1::observe_message::Kind as O;
+    if offset == 0.0 {
+        return file.iter().map(|(_, m)| m.clone()).collect();
+    }
+    let after = file
+        .iter()
+        .position(|(t, _)| *t > offset)
+        .unwrap_or(file.len());
+    let tick = file[..after].iter().rev().find_map(|(_, m)| match &m.kind {
+        Some(O::SurfaceFrame(f)) => Some(f.tick),
+        _ => None,
+    });
+    let first = file[..after]
+        .iter()
+        .rposition(|(_, m)| matches!(&m.kind, Some(O::SurfaceFrame(_))));
+    let held = file[..after]
+        .iter()
+        .enumerate()
+        .filter(|(k, (t, m))| match &m.kind {
+            Some(O::SurfaceFrame(_)) => Some(*k) == first,
+            Some(O::InstrumentState(s)) => Some(s.tick) == tick && Some(*k) > first,
+            Some(O::Event(_)) => *t == offset,
+            _ => false,
+        });
+    held.map(|(_, (_, m))| m.clone())
+        .chain(file[after..].iter().map(|(_, m)| m.clone()))
+        .collect()
+}
+
+/// The messages of a replay, each with when it arrived after the call was made,
+/// and how the stream ended; the call's own refusal as `Err`.
+async fn replay_all(
+    ch: &Channel,
+    token: Option<&str>,
+    request: v1::ReplayRequest,
+) -> Result<
+    (
+        Vec<(Duration, v1::ObserveMessage)>,
+        Result<(), tonic::Status>,
+    ),
+    tonic::Status,
+> {
+    let t0 = std::time::Instant::now();
+    let mut stream = v1::recordings_client::RecordingsClient::new(ch.clone())
+        .replay(with_token(request, token))
+        .await?
+        .into_inner();
+    let mut got = Vec::new();
+    let end = tokio::time::timeout(3 * WAIT, async {
+        loop {
+            match stream.message().await {
+                Ok(Some(m)) => got.push((t0.elapsed(), m)),
+                Ok(None) => return Ok(()),
+                Err(status) => return Err(status),
+            }
+        }
+    })
+    .await
+    .expect("the replay ends");
+    Ok((got, end))
+}
+
+fn replay_request(file: &str, speed: Option<f64>, offset: Option<f64>) -> v1::ReplayRequest {
+    v1::ReplayRequest {
+        file: file.to_string(),
+        speed,
+        start_offset_s: offset,
+        mode: v1::ReplayMode::Recorded as i32,
+    }
+}
+
+/// Surface positions as bits, to compare frames bit for bit.
+fn bits(m: &v1::ObserveMessage) -> Option<(u64, Vec<u32>)> {
+    match &m.kind {
+        Some(v1::observe_message::Kind::SurfaceFrame(f)) => Some((
+            f.sim_time_s.to_bits(),
+            f.positions.iter().map(|x| x.to_bits()).collect(),
+        )),
+        _ => None,
+    }
+}
+
+/// Each message arrives no earlier than its simulated time after the offset,
+/// divided by the speed (less a millisecond for rounding).
+fn assert_paced(got: &[(Duration, v1::ObserveMessage)], offset: f64, speed: f64) {
+    for (arrived, m) in got {
+        if let Some(t) = sim_time(m) {
+            let due = (t - offset).max(0.0) / speed;
+            assert!(
+                arrived.as_secs_f64() >= due - 1e-3,
+                "a message of t = {t} s arrived after {arrived:?}, before {due} s"
+            );
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_is_listed_and_replayed_as_recorded() {
+    use laparo_server::recording::Recording;
+    let dir = recordings_dir("replay");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let rec = record_press(&ch, &dir, 2.0).await;
+    let name = rec.file.file_name().unwrap().to_str().unwrap().to_string();
+    let recording = Recording::open(&rec.file).unwrap();
+    let file = recorded_messages(&recording);
+    let surfaces = recording.surfaces().unwrap();
+    let last = surfaces.last().unwrap().message.clone();
+    let scene = recording.scene().unwrap();
+    let rate = scene.summary.as_ref().unwrap().mechanics_rate_hz;
+
+    // The list: the session, its scene, start, duration and the file's size.
+    let mut recordings = v1::recordings_client::RecordingsClient::new(ch.clone());
+    let listed = recordings
+        .list_recordings(v1::ListRecordingsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .recordings;
+    assert_eq!(listed.len(), 1, "{listed:?}");
+    let info = &listed[0];
+    assert_eq!(info.file, name);
+    assert_eq!(info.session_id, rec.closed.session_id);
+    assert_eq!(info.scene, rec.closed.scene);
+    assert_eq!(info.start, rec.closed.created_at);
+    assert!(!info.in_progress);
+    assert_eq!(info.size_bytes, std::fs::metadata(&rec.file).unwrap().len());
+    assert_eq!(info.duration_s.to_bits(), last.sim_time_s.to_bits());
+    assert!(
+        (info.duration_s - last.tick as f64 / rate).abs() < 1e-9,
+        "{} s for {} ticks at {rate} Hz",
+        info.duration_s,
+        last.tick
+    );
+    assert!(last.tick <= rec.closed.tick && info.duration_s >= 2.0);
+
+    // At 20×: the scene, then every frame, state and event of the file in its
+    // order, frames bit for bit, each no earlier than its time allows.
+    let (got, end) = replay_all(&ch, None, replay_request(&name, Some(20.0), None))
+        .await
+        .unwrap();
+    end.unwrap();
+    assert_eq!(
+        got[0].1.kind,
+        Some(v1::observe_message::Kind::Scene(scene.clone()))
+    );
+    let sent: Vec<v1::ObserveMessage> = got[1..].iter().map(|(_, m)| m.clone()).collect();
+    let all: Vec<v1::ObserveMessage> = file.iter().map(|(_, m)| m.clone()).collect();
+    assert_eq!(sent.len(), all.len());
+    assert!(sent == all, "the replay differs from the file");
+    let frame_bits = |ms: &[v1::ObserveMessage]| ms.iter().filter_map(bits).collect::<Vec<_>>();
+    assert_eq!(frame_bits(&sent), frame_bits(&all));
+    assert_eq!(frame_bits(&sent).len(), surfaces.len());
+    let ticks: Vec<u64> = sent
+        .iter()
+        .filter_map(|m| match &m.kind {
+            Some(v1::observe_message::Kind::SurfaceFrame(f)) => Some(f.tick),
+            _ => None,
+        })
+        .collect();
+    assert!(ticks.windows(2).all(|w| w[0] < w[1]), "ticks out of order");
+    assert!(
+        sent.iter()
+            .any(|m| matches!(m.kind, Some(v1::observe_message::Kind::Event(_))))
+    );
+    assert_paced(&got, 0.0, 20.0);
+
+    // From an offset, at 2×: the state at the offset first, then nothing earlier,
+    // paced by the time after the offset.
+    let offset = 1.0;
+    let (got, end) = replay_all(&ch, None, replay_request(&name, Some(2.0), Some(offset)))
+        .await
+        .unwrap();
+    end.unwrap();
+    assert!(matches!(
+        got[0].1.kind,
+        Some(v1::observe_message::Kind::Scene(_))
+    ));
+    let sent: Vec<v1::ObserveMessage> = got[1..].iter().map(|(_, m)| m.clone()).collect();
+    assert!(sent == expected_from(&file, offset));
+    let frame_times: Vec<f64> = sent
+        .iter()
+        .filter(|m| bits(m).is_some())
+        .map(|m| sim_time(m).unwrap())
+        .collect();
+    let newest_before = surfaces
+        .iter()
+        .map(|s| s.message.sim_time_s)
+        .filter(|t| *t <= offset)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(frame_times[0].to_bits(), newest_before.to_bits());
+    assert!(frame_times[1..].iter().all(|t| *t > offset));
+    assert_paced(&got, offset, 2.0);
+    let span = (last.sim_time_s - offset) / 2.0;
+    let wall = got.last().unwrap().0.as_secs_f64();
+    assert!(
+        wall >= span - 1e-3 && wall < span + 15.0,
+        "{wall} s for {span} s of replay"
+    );
+    // From the very end: the last tick alone.
+    let (got, end) = replay_all(
+        &ch,
+        None,
+        replay_request(&name, Some(50.0), Some(info.duration_s)),
+    )
+    .await
+    .unwrap();
+    end.unwrap();
+    let sent: Vec<v1::ObserveMessage> = got[1..].iter().map(|(_, m)| m.clone()).collect();
+    assert!(sent == expected_from(&file, info.duration_s));
+    assert_eq!(sent.iter().filter_map(bits).count(), 1);
+
+    // Every bad request gets its code.
+    let code = |r: Result<_, tonic::Status>| r.err().map(|s: tonic::Status| s.code());
+    let bad =
+        |file: &str, speed: Option<f64>, offset: Option<f64>| replay_request(file, speed, offset);
+    let cases = [
+        (bad("../escape.mcap", None, None), Code::InvalidArgument),
+        (
+            bad(&format!("../{name}"), None, None),
+            Code::InvalidArgument,
+        ),
+        (
+            bad(&format!("{}/{name}", dir.display()), None, None),
+            Code::InvalidArgument,
+        ),
+        (bad("sub/x.mcap", None, None), Code::InvalidArgument),
+        (bad("..", None, None), Code::InvalidArgument),
+        (bad("", None, None), Code::InvalidArgument),
+        (bad("a\\b.mcap", None, None), Code::InvalidArgument),
+        (bad("notes.txt", None, None), Code::InvalidArgument),
+        (bad("nope.mcap", None, None), Code::NotFound),
+        (bad(&name, Some(0.0), None), Code::InvalidArgument),
+        (bad(&name, Some(-2.0), None), Code::InvalidArgument),
+        (bad(&name, Some(f64::NAN), None), Code::InvalidArgument),
+        (bad(&name, Some(f64::INFINITY), None), Code::InvalidArgument),
+        (bad(&name, Some(1000.0), None), Code::InvalidArgument),
+        (bad(&name, None, Some(-0.5)), Code::InvalidArgument),
+        (bad(&name, None, Some(f64::NAN)), Code::InvalidArgument),
+        (
+            bad(&name, None, Some(info.duration_s + 0.5)),
+            Code::OutOfRange,
+        ),
+        (
+            v1::ReplayRequest {
+                mode: v1::ReplayMode::Resimulate as i32,
+                ..bad(&name, None, None)
+            },
+            Code::Unimplemented,
+        ),
+        (
+            v1::ReplayRequest {
+                mode: 99,
+                ..bad(&name, None, None)
+            },
+            Code::InvalidArgument,
+        ),
+    ];
+    for (request, expected) in cases {
+        let what = format!("{request:?}");
+        let got = recordings.replay(request).await;
+        assert_eq!(code(got), Some(expected), "{what}");
+    }
+
+    // Files that are not recordings, or cannot be replayed, in the directory.
+    let bytes = std::fs::read(&rec.file).unwrap();
+    std::fs::write(dir.join("notes.mcap"), b"not a recording").unwrap();
+    std::fs::write(dir.join("cut.mcap"), &bytes[..bytes.len() * 3 / 4]).unwrap();
+    let chunks = &recording.mcap_summary().chunk_indexes;
+    assert!(chunks.len() >= 2, "{} chunks", chunks.len());
+    let chunk = &chunks[1];
+    let mut damaged = bytes.clone();
+    let middle = (chunk.chunk_start_offset + chunk.chunk_length / 2) as usize;
+    for b in &mut damaged[middle..middle + 16] {
+        *b ^= 0xA5;
+    }
+    std::fs::write(dir.join("damaged.mcap"), &damaged).unwrap();
+    let listed = recordings
+        .list_recordings(v1::ListRecordingsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .recordings;
+    assert!(listed.contains(info));
+    assert!(
+        listed
+            .iter()
+            .all(|r| r.file != "notes.mcap" && r.file != "cut.mcap"),
+        "{listed:?}"
+    );
+    for file in ["notes.mcap", "cut.mcap"] {
+        let status = recordings.replay(bad(file, None, None)).await.unwrap_err();
+        assert_eq!(status.code(), Code::FailedPrecondition, "{file}");
+        // Named by its name: the server's directory is none of the client's business.
+        let message = status.message();
+        assert!(
+            message.contains(file) && !message.contains(&*dir.to_string_lossy()),
+            "{message}"
+        );
+    }
+    let damaged = match replay_all(&ch, None, bad("damaged.mcap", Some(100.0), None)).await {
+        Err(status) => status,
+        Ok((_, end)) => end.expect_err("the damaged chunk ends the replay"),
+    };
+    assert_eq!(damaged.code(), Code::DataLoss, "{damaged:?}");
+
+    // Shutting down ends a replay as it ends live streams.
+    let mut slow = recordings
+        .replay(bad(&name, Some(0.01), None))
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(matches!(
+        slow.message().await.unwrap().unwrap().kind,
+        Some(v1::observe_message::Kind::Scene(_))
+    ));
+    let shutdown = tokio::spawn(server.shutdown());
+    let status = tokio::time::timeout(WAIT, async {
+        loop {
+            match slow.message().await {
+                Ok(Some(_)) => {}
+                Ok(None) => return None,
+                Err(status) => return Some(status),
+            }
+        }
+    })
+    .await
+    .unwrap()
+    .expect("the replay ends with a status");
+    assert_eq!(status.code(), Code::Unavailable, "{status:?}");
+    assert!(status.message().contains("shutting down"), "{status:?}");
+    shutdown.await.unwrap().unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn trainees_review_recordings_and_only_instructors_watch_one_being_made() {
+    let mut tokens = Tokens::default();
+    tokens.insert(
+        "instructor-token",
+        Caller {
+            name: "instructor".into(),
+            role: Role::Instructor,
+            instruments: None,
+        },
+    );
+    tokens.insert(
+        "trainee-token",
+        Caller {
+            name: "trainee".into(),
+            role: Role::Trainee,
+            instruments: None,
+        },
+    );
+    let dir = recordings_dir("replay-roles");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        tokens: Some(tokens),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let (teacher, trainee) = (Some("instructor-token"), Some("trainee-token"));
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let session = sessions
+        .create_session(with_token(
+            v1::CreateSessionRequest {
+                scene: "default".into(),
+                idle_timeout_s: None,
+                record: Some(true),
+            },
+            teacher,
+        ))
+        .await
+        .unwrap()
+        .into_inner();
+    let name = session.recording_file.clone().unwrap();
+    let get = || {
+        with_token(
+            v1::GetSessionRequest {
+                session_id: session.session_id.clone(),
+            },
+            teacher,
+        )
+    };
+    tokio::time::timeout(WAIT, async {
+        while sessions
+            .get_session(get())
+            .await
+            .unwrap()
+            .into_inner()
+            .sim_time_s
+            < 1.0
+        {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    })
+    .await
+    .unwrap();
+    let mut recordings = v1::recordings_client::RecordingsClient::new(ch.clone());
+    let lister = recordings.clone();
+    let list = |token| {
+        let mut r = lister.clone();
+        async move {
+            r.list_recordings(with_token(v1::ListRecordingsRequest {}, token))
+                .await
+                .map(|r| r.into_inner().recordings)
+        }
+    };
+    assert_eq!(
+        list(None).await.err().map(|s| s.code()),
+        Some(Code::Unauthenticated)
+    );
+    // Being recorded: listed in progress with what its closed chunks hold.
+    let listed = list(trainee).await.unwrap();
+    assert_eq!(listed.len(), 1);
+    let now = sessions.get_session(get()).await.unwrap().into_inner();
+    let so_far = &listed[0];
+    assert_eq!(
+        (so_far.file.as_str(), so_far.session_id.as_str()),
+        (name.as_str(), session.session_id.as_str())
+    );
+    assert!(so_far.in_progress);
+    assert!(so_far.duration_s <= now.sim_time_s, "{so_far:?}");
+    // Watching it is observing: an instructor's right.
+    let refused = recordings
+        .replay(with_token(
+            replay_request(&name, Some(100.0), None),
+            trainee,
+        ))
+        .await;
+    assert_eq!(
+        refused.err().map(|s| s.code()),
+        Some(Code::PermissionDenied)
+    );
+    let (got, end) = replay_all(&ch, teacher, replay_request(&name, Some(100.0), None))
+        .await
+        .unwrap();
+    end.unwrap();
+    assert!(matches!(
+        got[0].1.kind,
+        Some(v1::observe_message::Kind::Scene(_))
+    ));
+    let ticks: Vec<u64> = got
+        .iter()
+        .filter_map(|(_, m)| match &m.kind {
+            Some(v1::observe_message::Kind::SurfaceFrame(f)) => Some(f.tick),
+            _ => None,
+        })
+        .collect();
+    assert!(!ticks.is_empty());
+    assert!(
+        ticks.iter().zip(1..).all(|(t, k)| *t == k),
+        "the ticks so far, from 1: {ticks:?}"
+    );
+    // Finished: anyone reviews it.
+    sessions
+        .close_session(with_token(
+            v1::CloseSessionRequest {
+                session_id: session.session_id.clone(),
+                reason: "test over".into(),
+            },
+            teacher,
+        ))
+        .await
+        .unwrap();
+    let listed = list(trainee).await.unwrap();
+    assert!(!listed[0].in_progress);
+    assert!(listed[0].duration_s >= so_far.duration_s);
+    let (got, end) = replay_all(&ch, trainee, replay_request(&name, Some(100.0), None))
+        .await
+        .unwrap();
+    end.unwrap();
+    let frames = got.iter().filter(|(_, m)| bits(m).is_some()).count();
+    assert!(frames >= ticks.len());
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_that_records_nothing_says_so() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let mut recordings = v1::recordings_client::RecordingsClient::new(server.channel().await);
+    let listed = recordings
+        .list_recordings(v1::ListRecordingsRequest {})
+        .await;
+    let status = listed.err().unwrap();
+    assert_eq!(status.code(), Code::FailedPrecondition);
+    assert!(
+        status.message().contains("records no sessions"),
+        "{status:?}"
+    );
+    let replayed = recordings
+        .replay(replay_request("s1-default-1.mcap", None, None))
+        .await;
+    assert_eq!(
+        replayed.err().map(|s| s.code()),
+        Some(Code::FailedPrecondition)
+    );
+    server.shutdown().await.unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -24,6 +24,9 @@
 //!   mechanics thread never waits on; drops and failures are counted and reported.
 //! - [`reader`]: opens a recording, checks its version, decodes its messages.
 //! - [`summary`]: what a reviewer wants first: duration, path lengths, forces.
+//! - [`list`]: what a recordings directory holds: session, scene, start,
+//!   duration, size, and whether a file is finished, still being written or was
+//!   cut short.
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
 //! - [`recover`]: rewrites the file a killed server left into a valid, indexed one.
@@ -31,6 +34,7 @@
 //!   compares: zero deviation with the same build, since the engine is
 //!   deterministic.
 
+pub mod list;
 pub mod reader;
 pub mod recorder;
 pub mod records;
@@ -39,6 +43,7 @@ pub mod resim;
 pub mod summary;
 pub mod writer;
 
+pub use list::{FileState, Listed, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};

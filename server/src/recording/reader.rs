@@ -3,10 +3,12 @@
 //!
 //! A file that is not MCAP, is corrupt or was cut short gets a [`ReadError`] naming
 //! the file and what is wrong; nothing here panics on bad input. A file cut short
-//! (a killed server, or a session still running) has no summary: the reader says so
-//! and [`super::recover`] rewrites it into a complete one.
+//! (a killed server, or a session still running) has no summary: [`Recording::open`]
+//! says so and [`super::recover`] rewrites it into a complete one;
+//! [`Recording::open_unfinished`] reads what it holds so far.
 
 use std::collections::{BTreeMap, VecDeque};
+use std::io::Cursor;
 use std::path::Path;
 
 use laparo_proto::v1;
@@ -14,7 +16,7 @@ use mcap::records::{MessageHeader, Record};
 use mcap::{MAGIC, Summary};
 
 use super::records::{Records, chunk_records};
-use super::recover::{Recovery, recover_bytes};
+use super::recover::{RecoverError, recover_bytes};
 
 use super::{
     FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE,
@@ -91,12 +93,16 @@ pub struct Stamped<T> {
     pub message: T,
 }
 
-/// An open recording, read whole into memory.
+/// An open recording, read whole into memory (compressed, as on disk: messages are
+/// decoded a chunk at a time as they are read).
 pub struct Recording {
     file: String,
     bytes: Vec<u8>,
     meta: RecordingMeta,
     summary: Summary,
+    /// Whether the file had its summary and footer (see
+    /// [`open_unfinished`](Self::open_unfinished)).
+    complete: bool,
 }
 
 impl std::fmt::Debug for Recording {
@@ -119,26 +125,43 @@ impl Recording {
         Self::from_bytes(file, bytes)
     }
 
-    /// [`open`](Self::open), but a file that ends without its summary (a killed
-    /// server, a session still being recorded) is read through a recovery in
-    /// memory: every complete chunk, none of the tail. The [`Recovery`] says what
-    /// was kept; `None` for a complete file. The file itself is not changed.
-    pub fn open_partial(path: &Path) -> Result<(Self, Option<Recovery>), ReadError> {
+    /// Reads the recording at `path` as far as it goes: a complete file as
+    /// [`open`](Self::open) does; a file without its summary and footer (a session
+    /// still being recorded, or a server stopped mid-session) up to its last complete
+    /// chunk, exactly what [`super::recover`] would keep of it. A session creates its
+    /// file with the scene and metadata in a first chunk, so an unfinished file reads
+    /// as soon as it exists. [`is_complete`](Self::is_complete) tells which it was.
+    pub fn open_unfinished(path: &Path) -> Result<Self, ReadError> {
         let file = path.display().to_string();
         let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
             file: file.clone(),
             source,
         })?;
-        // Cut short: it starts as an MCAP file and lacks the closing magic.
-        if !bytes.starts_with(MAGIC) || bytes.ends_with(MAGIC) {
-            return Self::from_bytes(file, bytes).map(|r| (r, None));
+        Self::from_unfinished_bytes(file, bytes)
+    }
+
+    /// [`open_unfinished`](Self::open_unfinished) of a file held in memory; `file`
+    /// names it in errors.
+    pub fn from_unfinished_bytes(file: String, bytes: Vec<u8>) -> Result<Self, ReadError> {
+        // A file with its footer is finished: any fault in it is reported as such.
+        let footed = bytes.len() >= 2 * MAGIC.len() && bytes.ends_with(MAGIC);
+        if footed || !bytes.starts_with(MAGIC) {
+            return Self::from_bytes(file, bytes);
         }
-        let (recovery, out) = recover_bytes(&file, &bytes, std::io::Cursor::new(Vec::new()))
-            .map_err(|e| ReadError::Corrupt {
-                file: file.clone(),
-                message: e.to_string(),
+        // What the file holds so far, rewritten with a summary: the index and
+        // statistics the reader relies on, for the complete chunks only.
+        let (_, out) =
+            recover_bytes(&file, &bytes, Cursor::new(Vec::new())).map_err(|e| match e {
+                RecoverError::NotMcap { file } => ReadError::NotMcap { file },
+                e => ReadError::Corrupt {
+                    file: file.clone(),
+                    message: e.to_string(),
+                },
             })?;
-        Self::from_bytes(file, out.into_inner()).map(|r| (r, Some(recovery)))
+        drop(bytes);
+        let mut recording = Self::from_bytes(file, out.into_inner())?;
+        recording.complete = false;
+        Ok(recording)
     }
 
     /// Checks a recording held in memory; `file` names it in errors.
@@ -196,11 +219,86 @@ impl Recording {
             bytes,
             meta,
             summary,
+            complete: true,
         })
     }
 
     pub fn meta(&self) -> &RecordingMeta {
         &self.meta
+    }
+
+    /// Whether the file had its summary and footer; `false` for a file read by
+    /// [`open_unfinished`](Self::open_unfinished) as far as it went.
+    pub fn is_complete(&self) -> bool {
+        self.complete
+    }
+
+    /// Simulated time of the last tick recorded, s (0 without any): the newest
+    /// surface frame's, as [`super::summarize`] counts the duration. An indexed file
+    /// (every file the recorder finishes or recovery writes) has it from the last
+    /// chunk that holds a frame; otherwise every frame is read.
+    pub fn duration_s(&self) -> Result<f64, ReadError> {
+        let chunks = &self.summary.chunk_indexes;
+        let indexed =
+            !chunks.is_empty() && chunks.iter().all(|c| !c.message_index_offsets.is_empty());
+        if !indexed {
+            let frames = self.raw().filter_map(|m| match m {
+                Ok((topic, header, data)) => (topic == TOPIC_SURFACE).then_some(Ok((header, data))),
+                Err(e) => Some(Err(e)),
+            });
+            return self.latest_frame_time(frames);
+        }
+        let surface: Vec<u16> = self
+            .summary
+            .channels
+            .values()
+            .filter(|c| c.topic == TOPIC_SURFACE)
+            .map(|c| c.id)
+            .collect();
+        let Some(last) = chunks
+            .iter()
+            .filter(|c| {
+                c.message_index_offsets
+                    .keys()
+                    .any(|id| surface.contains(id))
+            })
+            .max_by_key(|c| c.chunk_start_offset)
+        else {
+            return Ok(0.0);
+        };
+        let at = usize::try_from(last.chunk_start_offset).unwrap_or(usize::MAX);
+        let records = match Records::at(&self.bytes, at).next() {
+            Some(Ok((_, Record::Chunk { header, data }))) => {
+                chunk_records(&header, &data).map_err(|e| self.corrupt(e))?
+            }
+            Some(Err(e)) => return Err(self.corrupt(e)),
+            _ => {
+                return Err(self.corrupt(format!(
+                    "its chunk index points at byte {at}, where no chunk starts"
+                )));
+            }
+        };
+        let frames = records.into_iter().filter_map(|r| match r {
+            Record::Message { header, data } if surface.contains(&header.channel_id) => {
+                Some(Ok((header, data.into_owned())))
+            }
+            _ => None,
+        });
+        self.latest_frame_time(frames)
+    }
+
+    /// The largest simulated time of the surface frames given undecoded.
+    fn latest_frame_time(
+        &self,
+        frames: impl Iterator<Item = Result<(MessageHeader, Vec<u8>), ReadError>>,
+    ) -> Result<f64, ReadError> {
+        let mut t: f64 = 0.0;
+        for f in frames {
+            let (header, data) = f?;
+            let frame: v1::SurfaceFrame = self.decode(TOPIC_SURFACE, &header, &data)?;
+            t = t.max(frame.sim_time_s);
+        }
+        Ok(t)
     }
 
     /// The file's MCAP summary (channels, schemas, statistics, indexes).
@@ -317,16 +415,19 @@ impl Recording {
         })
     }
 
-    /// The recorded scene.
+    /// The recorded scene: the first message on `/scene`, which the recorder writes
+    /// first, so reading stops in the first chunk.
     pub fn scene(&self) -> Result<v1::SceneDescription, ReadError> {
-        self.topic(TOPIC_SCENE)?
-            .into_iter()
-            .next()
-            .map(|s| s.message)
-            .ok_or_else(|| ReadError::NotARecording {
-                file: self.file.clone(),
-                message: format!("it has no message on {TOPIC_SCENE}"),
-            })
+        for m in self.raw() {
+            let (topic, header, data) = m?;
+            if topic == TOPIC_SCENE {
+                return self.decode(&topic, &header, &data);
+            }
+        }
+        Err(ReadError::NotARecording {
+            file: self.file.clone(),
+            message: format!("it has no message on {TOPIC_SCENE}"),
+        })
     }
 
     pub fn poses(&self) -> Result<Vec<Stamped<v1::DevicePose>>, ReadError> {

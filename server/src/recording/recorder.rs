@@ -115,6 +115,8 @@ struct Shared {
     error: Mutex<Option<String>>,
     /// Whether the file was created.
     created: AtomicBool,
+    /// Whether the thread has ended: the file is finished, or failed.
+    ended: AtomicBool,
 }
 
 /// Least time between two lagging reports, ms: a recorder that keeps falling
@@ -161,7 +163,10 @@ impl Recorder {
             let (shared, path) = (shared.clone(), path.clone());
             std::thread::Builder::new()
                 .name("recorder".into())
-                .spawn(move || run(&path, &header, &rx, &shared))?
+                .spawn(move || {
+                    run(&path, &header, &rx, &shared);
+                    shared.ended.store(true, Ordering::Release);
+                })?
         };
         Ok(Recorder {
             tx,
@@ -223,6 +228,12 @@ impl Recorder {
     /// The recording's path.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Whether the file is still being written: the thread has not ended, so the
+    /// file has no summary and footer yet. False once it is finished or failed.
+    pub fn is_writing(&self) -> bool {
+        !self.shared.ended.load(Ordering::Acquire)
     }
 
     /// Whether the file was created (it may have failed later).

@@ -55,6 +55,16 @@ impl<'a> Records<'a> {
         }
     }
 
+    /// The records of `bytes` (a whole file) from offset `at` on, e.g. a chunk an
+    /// index points to; from an offset past the end there are none.
+    pub fn at(bytes: &'a [u8], at: usize) -> Self {
+        Records {
+            bytes,
+            at: at.min(bytes.len()),
+            done: false,
+        }
+    }
+
     /// Where the next record starts.
     pub fn position(&self) -> usize {
         self.at

@@ -17,6 +17,8 @@
 //! Every call carries `authorization: Bearer <token>`; an unknown or missing token is
 //! `UNAUTHENTICATED`, a role without the right is `PERMISSION_DENIED`. Without a
 //! tokens file (a loopback server for one person) every caller is an instructor.
+//! Both roles may list recordings and replay finished ones (review); a recording
+//! still being made is a live session, which only an instructor may watch.
 
 use std::collections::HashMap;
 use std::path::Path;

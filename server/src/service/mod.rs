@@ -156,7 +156,9 @@ pub async fn serve(
     );
     let recordings = service!(
         v1::recordings_server::RecordingsServer<recordings::RecordingsService>,
-        recordings::RecordingsService
+        recordings::RecordingsService {
+            registry: registry.clone()
+        }
     );
     for name in [
         "laparo.v1.Scenes",

@@ -1,12 +1,377 @@
-//! `Recordings`: answered `UNIMPLEMENTED` until sessions are recorded (MCAP).
+//! `Recordings`: what the server's recordings directory holds, and a recording
+//! played back as an observe stream.
+//!
+//! Who may: listing, any caller. Replaying a finished recording, any caller too —
+//! trainees review sessions, theirs or an instructor's, which is what recordings
+//! are for. A recording still being written is a session going on: watching it is
+//! observing, which needs an instructor as `Observe` does.
+//!
+//! `ListRecordings` gives the files [`crate::recording::list`] reads: finished
+//! recordings, and those a session of this server is still writing (`in_progress`,
+//! with what their complete chunks hold). A file that cannot be replayed — not
+//! MCAP, corrupt where the listing looks, of another format version, or cut short by
+//! a stopped server — is left out (and logged): a listing has no place to say why,
+//! `Replay` of it says it, and `laparo recordings list --dir` shows it. The listing
+//! checks what it reads (header, summary, metadata, the last chunk with a frame); a
+//! chunk damaged elsewhere is found by the replay that reaches it.
+//!
+//! `Replay` ([`Playback::Recorded`]): the scene first, then the surface frames,
+//! instrument states and events in recorded order, the message of simulated time
+//! `t` sent `(t − start_offset_s) / speed` after the stream starts (deadlines
+//! counted from one start instant, so nothing drifts). Nothing is skipped: a client
+//! slower than the pace slows its own replay down, and the file's bounded read-ahead
+//! ([`READ_AHEAD`]) keeps the reading thread waiting for it. From an offset, the
+//! newest tick at or before it (its surface and instrument states, and the events
+//! stamped at the offset) goes first, at once, so that a viewer shows the liver as it
+//! was there; earlier ticks and events are not sent. The stream ends with the
+//! recording (OK), with `DATA_LOSS` at a damaged chunk, or with `UNAVAILABLE` when
+//! the server shuts down.
+
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, UNIX_EPOCH};
 
 use laparo_proto::v1;
+use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
-use super::auth::caller;
+use super::auth::{Caller, Role, caller};
+use super::registry::Registry;
+use super::stream::{Item, OUTBOUND, Wrap};
+use crate::recording::list::{self, FileState};
+use crate::recording::{ReadError, Recorded, Recording};
 
-pub struct RecordingsService;
+pub struct RecordingsService {
+    pub registry: Arc<Registry>,
+}
+
+/// Fastest replay, times real time: a few minutes of frames in seconds.
+pub const MAX_SPEED: f64 = 100.0;
+/// Slowest replay, times real time: a minute of session in under two hours.
+pub const MIN_SPEED: f64 = 0.01;
+/// Decoded messages the reading thread may be ahead of the stream by.
+pub const READ_AHEAD: usize = 32;
+
+/// How a recording is played back (`ReplayRequest.mode`), decided in one place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Playback {
+    /// The recorded frames, instrument states and events as they were.
+    Recorded,
+    /// The recorded poses through a fresh simulation: not served yet.
+    Resimulate,
+}
+
+impl Playback {
+    pub fn from_request(mode: i32) -> Result<Self, Status> {
+        match v1::ReplayMode::try_from(mode) {
+            Ok(v1::ReplayMode::Unspecified | v1::ReplayMode::Recorded) => Ok(Playback::Recorded),
+            Ok(v1::ReplayMode::Resimulate) => Ok(Playback::Resimulate),
+            Err(_) => Err(Status::invalid_argument(format!(
+                "unknown replay mode {mode}"
+            ))),
+        }
+    }
+}
+
+/// A replay's speed factor: absent 1; finite, within [`MIN_SPEED`]..=[`MAX_SPEED`].
+pub fn speed(asked: Option<f64>) -> Result<f64, Status> {
+    match asked {
+        None => Ok(1.0),
+        Some(s) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Ok(s),
+        Some(s) => Err(Status::invalid_argument(format!(
+            "the replay speed must be a finite factor from {MIN_SPEED} to {MAX_SPEED} \
+             (got {s})"
+        ))),
+    }
+}
+
+/// A replay's start offset, s: absent 0; finite and ≥ 0 (checked against the
+/// recording's duration once it is open).
+pub fn start_offset(asked: Option<f64>) -> Result<f64, Status> {
+    match asked {
+        None => Ok(0.0),
+        Some(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        Some(t) => Err(Status::invalid_argument(format!(
+            "the start offset must be finite and ≥ 0 s (got {t})"
+        ))),
+    }
+}
+
+/// Checks that `name` is a bare `.mcap` file name: no directory part, no `..`, not
+/// absolute, so that it names a file of the recordings directory and nothing else.
+pub fn file_name(name: &str) -> Result<&str, Status> {
+    let bad = |why: &str| {
+        Err(Status::invalid_argument(format!(
+            "`{name}` is not a recording's file name: {why}"
+        )))
+    };
+    if name.is_empty() {
+        return bad("it is empty");
+    }
+    if name.contains(['/', '\\', '\0']) {
+        return bad("give the bare file name, without a directory");
+    }
+    let mut components = Path::new(name).components();
+    if !matches!(
+        (components.next(), components.next()),
+        (Some(Component::Normal(_)), None)
+    ) {
+        return bad("give the bare file name, without a directory");
+    }
+    if !name.ends_with(".mcap") || name.len() == ".mcap".len() {
+        return bad("recordings are `.mcap` files");
+    }
+    Ok(name)
+}
+
+/// The status a recording that cannot be read gets (the error names the file).
+pub fn read_status(name: &str, e: &ReadError) -> Status {
+    match e {
+        ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            Status::not_found(format!("no recording `{name}`"))
+        }
+        ReadError::Corrupt { .. } | ReadError::Decode { .. } => Status::data_loss(e.to_string()),
+        ReadError::Io { .. }
+        | ReadError::NotMcap { .. }
+        | ReadError::Truncated { .. }
+        | ReadError::NotARecording { .. }
+        | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(e.to_string()),
+    }
+}
+
+impl RecordingsService {
+    fn dir(&self) -> Result<PathBuf, Status> {
+        self.registry.recordings.clone().ok_or_else(|| {
+            Status::failed_precondition(
+                "this server records no sessions (it runs without a recordings directory), \
+                 so it has no recordings to list or replay",
+            )
+        })
+    }
+}
+
+/// Runs `f` off the async runtime's threads.
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, Status> + Send + 'static,
+) -> Result<T, Status> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| Status::internal(format!("reading recordings failed: {e}")))?
+}
+
+fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
+    v1::RecordingInfo {
+        file,
+        session_id: l.session_id.clone(),
+        scene: l.scene.clone(),
+        start: Some((UNIX_EPOCH + Duration::from_nanos(l.start_unix_ns)).into()),
+        duration_s: l.duration_s,
+        size_bytes,
+        in_progress: l.state == FileState::InProgress,
+    }
+}
+
+/// A recording opened for replay, checked against the request.
+struct Opened {
+    recording: Recording,
+    scene: v1::SceneDescription,
+}
+
+/// Opens `name` in `dir` for a replay by `caller` from `offset`.
+fn open_for_replay(
+    registry: &Registry,
+    dir: &Path,
+    name: &str,
+    caller: &Caller,
+    offset: f64,
+) -> Result<Opened, Status> {
+    let path = dir.join(name);
+    match std::fs::metadata(&path) {
+        Ok(m) if m.is_file() => {}
+        Ok(_) => return Err(Status::not_found(format!("no recording `{name}`"))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(Status::not_found(format!("no recording `{name}`")));
+        }
+        Err(e) => {
+            return Err(Status::failed_precondition(format!(
+                "cannot read recording `{name}`: {e}"
+            )));
+        }
+    }
+    let status = |e: ReadError| read_status(name, &e);
+    let (recording, state) = list::open(&path, |p| registry.is_recording(p)).map_err(status)?;
+    match state {
+        FileState::Complete => {}
+        FileState::InProgress if caller.role == Role::Instructor => {}
+        FileState::InProgress => {
+            return Err(Status::permission_denied(format!(
+                "`{name}` is a session still going on: watching it needs an instructor \
+                 token, as observing does; `{}` is a trainee",
+                caller.name
+            )));
+        }
+        FileState::Unfinished => {
+            return Err(Status::failed_precondition(format!(
+                "recording `{name}` ends without its summary: its server stopped while \
+                 recording it; `laparo recordings recover` completes it"
+            )));
+        }
+    }
+    let duration = recording.duration_s().map_err(status)?;
+    if offset > duration {
+        return Err(Status::out_of_range(format!(
+            "the start offset {offset} s is past the end of `{name}`, which lasts \
+             {duration} s"
+        )));
+    }
+    let scene = recording.scene().map_err(status)?;
+    Ok(Opened { recording, scene })
+}
+
+/// A message to send at `at_s` of simulated time after the replay's start offset.
+struct Timed {
+    at_s: f64,
+    message: v1::ObserveMessage,
+}
+
+/// The recording's frames, instrument states and events from `offset` on, decoded
+/// one at a time onto `feed` (bounded: this waits for the stream), until the file
+/// ends, a message does not read (the stream then ends with its status) or the
+/// stream is gone. Runs on a blocking thread.
+fn read_recorded(
+    recording: Recording,
+    name: &str,
+    offset: f64,
+    feed: mpsc::Sender<Result<Timed, Status>>,
+) {
+    let send = |at_s: f64, item: Item| match v1::ObserveMessage::wrap(item) {
+        Some(message) => feed.blocking_send(Ok(Timed { at_s, message })).is_ok(),
+        None => true,
+    };
+    // The newest tick at or before the offset, with the events stamped at it.
+    let mut held: Vec<Item> = Vec::new();
+    let mut held_tick = None;
+    let mut before = offset > 0.0;
+    for m in recording.messages() {
+        let m = match m {
+            Ok(m) => m,
+            Err(e) => {
+                let _ = feed.blocking_send(Err(read_status(name, &e)));
+                return;
+            }
+        };
+        let (t, item) = match m.message {
+            Recorded::Scene(_) | Recorded::Pose(_) => continue,
+            Recorded::Surface(f) => (f.sim_time_s, Item::Surface(f)),
+            Recorded::Instrument(s) => (s.sim_time_s, Item::State(s)),
+            Recorded::Event(e) => (e.sim_time_s, Item::Event(e)),
+        };
+        if before {
+            if t <= offset {
+                match &item {
+                    Item::Surface(f) => {
+                        held.retain(|i| matches!(i, Item::Event(_)));
+                        held_tick = Some(f.tick);
+                        held.push(item);
+                    }
+                    Item::State(s) if held_tick == Some(s.tick) => held.push(item),
+                    Item::Event(_) if t == offset => held.push(item),
+                    _ => {}
+                }
+                continue;
+            }
+            before = false;
+            for item in held.drain(..) {
+                if !send(0.0, item) {
+                    return;
+                }
+            }
+        }
+        if !send(t - offset, item) {
+            return;
+        }
+    }
+    for item in held {
+        if !send(0.0, item) {
+            return;
+        }
+    }
+}
+
+/// Resolves with the reason once the server shuts down.
+async fn shut_down(shutdown: &mut watch::Receiver<Option<String>>) -> String {
+    let reason = match shutdown.wait_for(Option::is_some).await {
+        Ok(reason) => reason.clone(),
+        Err(_) => None,
+    };
+    match reason {
+        Some(reason) => reason,
+        // The registry is gone: nothing will shut this stream down.
+        None => std::future::pending().await,
+    }
+}
+
+/// Sends `feed`'s messages at their times divided by `speed` after now, until the
+/// feed ends (the stream then ends OK), the client goes, or the server shuts down
+/// (the stream then ends with `UNAVAILABLE`, as live streams do).
+async fn pace(
+    mut feed: mpsc::Receiver<Result<Timed, Status>>,
+    tx: mpsc::Sender<Result<v1::ObserveMessage, Status>>,
+    speed: f64,
+    mut shutdown: watch::Receiver<Option<String>>,
+) {
+    let start = Instant::now();
+    let ended = |reason: String| Status::unavailable(format!("replay ended: {reason}"));
+    loop {
+        let next = tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            _ = tx.closed() => return,
+            next = feed.recv() => next,
+        };
+        let Timed { at_s, message } = match next {
+            None => return,
+            Some(Err(status)) => {
+                let _ = tx.send(Err(status)).await;
+                return;
+            }
+            Some(Ok(timed)) => timed,
+        };
+        let due = Duration::try_from_secs_f64((at_s / speed).max(0.0))
+            .ok()
+            .and_then(|d| start.checked_add(d));
+        let wait = async {
+            match due {
+                Some(due) => tokio::time::sleep_until(due).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            _ = tx.closed() => return,
+            _ = wait => {}
+        }
+        tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            sent = tx.send(Ok(message)) => if sent.is_err() {
+                return;
+            },
+        }
+    }
+}
 
 #[tonic::async_trait]
 impl v1::recordings_server::Recordings for RecordingsService {
@@ -17,18 +382,127 @@ impl v1::recordings_server::Recordings for RecordingsService {
         request: Request<v1::ListRecordingsRequest>,
     ) -> Result<Response<v1::ListRecordingsResponse>, Status> {
         caller(&request)?;
-        Err(Status::unimplemented(
-            "this server does not record sessions yet",
-        ))
+        let dir = self.dir()?;
+        let registry = self.registry.clone();
+        let listed = blocking(move || {
+            list::list(&dir, |p| registry.is_recording(p)).map_err(|e| {
+                Status::failed_precondition(format!(
+                    "cannot read the recordings directory {}: {e}",
+                    dir.display()
+                ))
+            })
+        })
+        .await?;
+        let mut recordings = Vec::new();
+        for l in listed {
+            match &l.entry {
+                Ok(e) if e.state != FileState::Unfinished => {
+                    recordings.push(info(l.file, l.size_bytes, e));
+                }
+                Ok(_) => tracing::warn!(
+                    file = %l.file,
+                    "not listed: it ends without its summary (cut short by a stopped server)"
+                ),
+                Err(e) => tracing::warn!(file = %l.file, "not listed: {e}"),
+            }
+        }
+        Ok(Response::new(v1::ListRecordingsResponse { recordings }))
     }
 
     async fn replay(
         &self,
         request: Request<v1::ReplayRequest>,
     ) -> Result<Response<Self::ReplayStream>, Status> {
-        caller(&request)?;
-        Err(Status::unimplemented(
-            "this server does not record sessions yet",
-        ))
+        let caller = caller(&request)?;
+        let r = request.into_inner();
+        let name = file_name(&r.file)?.to_string();
+        let speed = speed(r.speed)?;
+        let offset = start_offset(r.start_offset_s)?;
+        let read = match Playback::from_request(r.mode)? {
+            Playback::Recorded => read_recorded,
+            Playback::Resimulate => {
+                return Err(Status::unimplemented(
+                    "resimulating a recording is `laparo resim` for now; replay it \
+                     REPLAY_MODE_RECORDED",
+                ));
+            }
+        };
+        let dir = self.dir()?;
+        let registry = self.registry.clone();
+        let opened = {
+            let name = name.clone();
+            blocking(move || open_for_replay(&registry, &dir, &name, &caller, offset)).await?
+        };
+        let (tx, rx) = mpsc::channel(OUTBOUND);
+        let scene = v1::ObserveMessage {
+            kind: Some(v1::observe_message::Kind::Scene(opened.scene)),
+        };
+        let _ = tx.try_send(Ok(scene));
+        let (feed_tx, feed) = mpsc::channel(READ_AHEAD);
+        let recording = opened.recording;
+        tokio::task::spawn_blocking(move || read(recording, &name, offset, feed_tx));
+        tokio::spawn(pace(feed, tx, speed, self.registry.shutting_down()));
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use tonic::Code;
+
+    use super::*;
+
+    #[test]
+    fn only_bare_recording_names_speeds_in_range_and_offsets_from_zero_pass() {
+        for ok in ["s1-default-1764000000.mcap", "a b.mcap", "..x.mcap"] {
+            assert_eq!(file_name(ok).unwrap(), ok);
+        }
+        for bad in [
+            "",
+            ".",
+            "..",
+            "../a.mcap",
+            "/abs.mcap",
+            "a/b.mcap",
+            "a\\b.mcap",
+            "./a.mcap",
+            ".mcap",
+            "notes.txt",
+            "a.mcap\0",
+        ] {
+            assert_eq!(
+                file_name(bad).unwrap_err().code(),
+                Code::InvalidArgument,
+                "{bad:?}"
+            );
+        }
+        assert_eq!(speed(None).unwrap(), 1.0);
+        for ok in [MIN_SPEED, 0.5, 20.0, MAX_SPEED] {
+            assert_eq!(speed(Some(ok)).unwrap(), ok);
+        }
+        for bad in [
+            0.0,
+            -1.0,
+            MIN_SPEED / 2.0,
+            MAX_SPEED * 1.01,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            assert_eq!(speed(Some(bad)).unwrap_err().code(), Code::InvalidArgument);
+        }
+        assert_eq!(start_offset(None).unwrap(), 0.0);
+        assert_eq!(start_offset(Some(2.5)).unwrap(), 2.5);
+        for bad in [-1e-9, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert!(start_offset(Some(bad)).is_err());
+        }
+        assert_eq!(
+            Playback::from_request(v1::ReplayMode::Unspecified as i32).unwrap(),
+            Playback::Recorded
+        );
+        assert_eq!(
+            Playback::from_request(v1::ReplayMode::Resimulate as i32).unwrap(),
+            Playback::Resimulate
+        );
+        assert!(Playback::from_request(7).is_err());
     }
 }

@@ -3,12 +3,14 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::Duration;
 
+use tokio::sync::watch;
 use tonic::Status;
 
 use crate::engine::scene::Scene;
+use crate::recording::Recorder;
 use crate::session::{Session, SessionConfig};
 
 /// The embedded default scene and the `.toml` files of a directory, by name.
@@ -56,6 +58,10 @@ pub struct Registry {
     pub idle_timeout: Option<Duration>,
     /// Where sessions are recorded; `None`: this server records nothing.
     pub recordings: Option<PathBuf>,
+    /// The recorders of this server's sessions, until their files are finished.
+    recorders: Mutex<Vec<Weak<Recorder>>>,
+    /// `Some(reason)` once the server is shutting down.
+    shutdown: watch::Sender<Option<String>>,
 }
 
 impl Registry {
@@ -70,7 +76,35 @@ impl Registry {
             next: AtomicU64::new(1),
             idle_timeout,
             recordings,
+            recorders: Mutex::new(Vec::new()),
+            shutdown: watch::channel(None).0,
         }
+    }
+
+    /// The recorders still writing, forgetting the others.
+    fn writing(&self) -> Vec<Arc<Recorder>> {
+        let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
+        let mut writing = Vec::new();
+        recorders.retain(|w| match w.upgrade() {
+            Some(r) if r.is_writing() => {
+                writing.push(r);
+                true
+            }
+            // Dropped or ended: its file is finished (or failed for good).
+            _ => false,
+        });
+        writing
+    }
+
+    /// Whether a session of this server is still writing the recording at `path`,
+    /// which then has no summary and footer yet.
+    pub fn is_recording(&self, path: &Path) -> bool {
+        self.writing().iter().any(|r| r.path() == path)
+    }
+
+    /// Resolves to the reason once the server is shutting down.
+    pub fn shutting_down(&self) -> watch::Receiver<Option<String>> {
+        self.shutdown.subscribe()
     }
 
     fn map(&self) -> MutexGuard<'_, BTreeMap<String, Arc<Session>>> {
@@ -103,6 +137,11 @@ impl Registry {
             .map_err(|e| {
                 Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
             })?;
+        if let Some(recorder) = session.recorder_weak() {
+            let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
+            recorders.retain(|w| w.upgrade().is_some_and(|r| r.is_writing()));
+            recorders.push(recorder);
+        }
         self.map().insert(id, session.clone());
         tracing::info!(session = %session.id, scene = name, "session created");
         Ok(session)
@@ -140,8 +179,10 @@ impl Registry {
         Ok(session)
     }
 
-    /// Closes every session (shutdown) and waits for their mechanics threads.
+    /// Closes every session (shutdown) and waits for their mechanics threads;
+    /// streams not tied to a session (replays) end too.
     pub fn close_all(&self, reason: &str) {
+        self.shutdown.send_replace(Some(reason.to_string()));
         let all: Vec<_> = std::mem::take(&mut *self.map()).into_values().collect();
         for s in &all {
             s.close(reason);

@@ -21,7 +21,7 @@ mod mechanics;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime};
 
@@ -257,6 +257,12 @@ impl Session {
     /// The session's recorder, when it is recorded.
     pub fn recorder(&self) -> Option<&Recorder> {
         self.recorder.as_deref()
+    }
+
+    /// A handle on the session's recorder that does not keep it alive: a recorder
+    /// that can no longer be reached through it has finished its file.
+    pub fn recorder_weak(&self) -> Option<Weak<Recorder>> {
+        self.recorder.as_ref().map(Arc::downgrade)
     }
 
     /// Publishes what the recorder asks to tell (to the live streams only: the
