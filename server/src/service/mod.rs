@@ -12,6 +12,7 @@ pub mod auth;
 pub mod observe;
 pub mod recordings;
 pub mod registry;
+pub mod replay;
 pub mod scenes;
 pub mod sessions;
 pub mod station;

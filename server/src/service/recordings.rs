@@ -15,7 +15,8 @@
 //! checks what it reads (header, summary, metadata, the last chunk with a frame); a
 //! chunk damaged elsewhere is found by the replay that reaches it.
 //!
-//! `Replay` ([`Playback::Recorded`]): the scene first, then the surface frames,
+//! `Replay` ([`Playback::Recorded`]; [`Playback::Resimulate`] sends a re-simulation
+//! the same way, see [`super::replay`]): the scene first, then the surface frames,
 //! instrument states and events in recorded order, the message of simulated time
 //! `t` sent `(t − start_offset_s) / speed` after the stream starts (deadlines
 //! counted from one start instant, so nothing drifts). Nothing is skipped: a client
@@ -32,16 +33,16 @@ use std::sync::Arc;
 use std::time::{Duration, UNIX_EPOCH};
 
 use laparo_proto::v1;
-use tokio::sync::{mpsc, watch};
-use tokio::time::Instant;
+use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::{Caller, Role, caller};
 use super::registry::Registry;
-use super::stream::{Item, OUTBOUND, Wrap};
+use super::replay::{pace, read_recorded, read_resimulated};
+use super::stream::OUTBOUND;
 use crate::recording::list::{self, FileState};
-use crate::recording::{ReadError, Recorded, Recording};
+use crate::recording::{ReadError, Recording};
 
 pub struct RecordingsService {
     pub registry: Arc<Registry>,
@@ -59,7 +60,8 @@ pub const READ_AHEAD: usize = 32;
 pub enum Playback {
     /// The recorded frames, instrument states and events as they were.
     Recorded,
-    /// The recorded poses through a fresh simulation: not served yet.
+    /// The recorded poses through a fresh build of the recorded scene
+    /// ([`super::replay::read_resimulated`]).
     Resimulate,
 }
 
@@ -230,149 +232,6 @@ fn open_for_replay(
     Ok(Opened { recording, scene })
 }
 
-/// A message to send at `at_s` of simulated time after the replay's start offset.
-struct Timed {
-    at_s: f64,
-    message: v1::ObserveMessage,
-}
-
-/// The recording's frames, instrument states and events from `offset` on, decoded
-/// one at a time onto `feed` (bounded: this waits for the stream), until the file
-/// ends, a message does not read (the stream then ends with its status) or the
-/// stream is gone. Runs on a blocking thread.
-fn read_recorded(
-    recording: Recording,
-    name: &str,
-    offset: f64,
-    feed: mpsc::Sender<Result<Timed, Status>>,
-) {
-    let send = |at_s: f64, item: Item| match v1::ObserveMessage::wrap(item) {
-        Some(message) => feed.blocking_send(Ok(Timed { at_s, message })).is_ok(),
-        None => true,
-    };
-    // The newest tick at or before the offset, with the events stamped at it.
-    let mut held: Vec<Item> = Vec::new();
-    let mut held_tick = None;
-    let mut before = offset > 0.0;
-    for m in recording.messages() {
-        let m = match m {
-            Ok(m) => m,
-            Err(e) => {
-                let _ = feed.blocking_send(Err(read_status(name, &e)));
-                return;
-            }
-        };
-        let (t, item) = match m.message {
-            Recorded::Scene(_) | Recorded::Pose(_) => continue,
-            Recorded::Surface(f) => (f.sim_time_s, Item::Surface(f)),
-            Recorded::Instrument(s) => (s.sim_time_s, Item::State(s)),
-            Recorded::Event(e) => (e.sim_time_s, Item::Event(e)),
-        };
-        if before {
-            if t <= offset {
-                match &item {
-                    Item::Surface(f) => {
-                        held.retain(|i| matches!(i, Item::Event(_)));
-                        held_tick = Some(f.tick);
-                        held.push(item);
-                    }
-                    Item::State(s) if held_tick == Some(s.tick) => held.push(item),
-                    Item::Event(_) if t == offset => held.push(item),
-                    _ => {}
-                }
-                continue;
-            }
-            before = false;
-            for item in held.drain(..) {
-                if !send(0.0, item) {
-                    return;
-                }
-            }
-        }
-        if !send(t - offset, item) {
-            return;
-        }
-    }
-    for item in held {
-        if !send(0.0, item) {
-            return;
-        }
-    }
-}
-
-/// Resolves with the reason once the server shuts down.
-async fn shut_down(shutdown: &mut watch::Receiver<Option<String>>) -> String {
-    let reason = match shutdown.wait_for(Option::is_some).await {
-        Ok(reason) => reason.clone(),
-        Err(_) => None,
-    };
-    match reason {
-        Some(reason) => reason,
-        // The registry is gone: nothing will shut this stream down.
-        None => std::future::pending().await,
-    }
-}
-
-/// Sends `feed`'s messages at their times divided by `speed` after now, until the
-/// feed ends (the stream then ends OK), the client goes, or the server shuts down
-/// (the stream then ends with `UNAVAILABLE`, as live streams do).
-async fn pace(
-    mut feed: mpsc::Receiver<Result<Timed, Status>>,
-    tx: mpsc::Sender<Result<v1::ObserveMessage, Status>>,
-    speed: f64,
-    mut shutdown: watch::Receiver<Option<String>>,
-) {
-    let start = Instant::now();
-    let ended = |reason: String| Status::unavailable(format!("replay ended: {reason}"));
-    loop {
-        let next = tokio::select! {
-            biased;
-            reason = shut_down(&mut shutdown) => {
-                let _ = tx.send(Err(ended(reason))).await;
-                return;
-            }
-            _ = tx.closed() => return,
-            next = feed.recv() => next,
-        };
-        let Timed { at_s, message } = match next {
-            None => return,
-            Some(Err(status)) => {
-                let _ = tx.send(Err(status)).await;
-                return;
-            }
-            Some(Ok(timed)) => timed,
-        };
-        let due = Duration::try_from_secs_f64((at_s / speed).max(0.0))
-            .ok()
-            .and_then(|d| start.checked_add(d));
-        let wait = async {
-            match due {
-                Some(due) => tokio::time::sleep_until(due).await,
-                None => std::future::pending().await,
-            }
-        };
-        tokio::select! {
-            biased;
-            reason = shut_down(&mut shutdown) => {
-                let _ = tx.send(Err(ended(reason))).await;
-                return;
-            }
-            _ = tx.closed() => return,
-            _ = wait => {}
-        }
-        tokio::select! {
-            biased;
-            reason = shut_down(&mut shutdown) => {
-                let _ = tx.send(Err(ended(reason))).await;
-                return;
-            }
-            sent = tx.send(Ok(message)) => if sent.is_err() {
-                return;
-            },
-        }
-    }
-}
-
 #[tonic::async_trait]
 impl v1::recordings_server::Recordings for RecordingsService {
     type ReplayStream = ReceiverStream<Result<v1::ObserveMessage, Status>>;
@@ -420,12 +279,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let offset = start_offset(r.start_offset_s)?;
         let read = match Playback::from_request(r.mode)? {
             Playback::Recorded => read_recorded,
-            Playback::Resimulate => {
-                return Err(Status::unimplemented(
-                    "resimulating a recording is `laparo resim` for now; replay it \
-                     REPLAY_MODE_RECORDED",
-                ));
-            }
+            Playback::Resimulate => read_resimulated,
         };
         let dir = self.dir()?;
         let registry = self.registry.clone();

@@ -1,0 +1,309 @@
+//! A recording played back as an observe stream: a reading thread feeds timed
+//! messages through a bounded channel, and [`pace`] sends each at its simulated
+//! time divided by the speed.
+//!
+//! Two feeds, one per [`super::recordings::Playback`]:
+//! - [`read_recorded`]: the frames, instrument states and events as recorded;
+//! - [`read_resimulated`]: the recorded poses through a fresh build of the recorded
+//!   scene ([`crate::recording::Resimulator`]), sending the new frames and
+//!   instrument states, the contact events they give, and the recorded events that
+//!   do not come from the physics (stations joining and leaving, rejected input,
+//!   the recorder's reports). With the same build and scene it sends what
+//!   `read_recorded` sends; with another it shows what would have happened.
+//!
+//! Both start at an offset the same way ([`FromOffset`]).
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use laparo_proto::v1;
+use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
+use tonic::Status;
+
+use super::recordings::read_status;
+use super::stream::{Item, Wrap};
+use crate::recording::{Recorded, Recording, Resimulator};
+use crate::session::describe::{ContactWatch, instrument_state, surface_positions};
+
+/// A message to send at `at_s` of simulated time after the replay's start offset.
+pub struct Timed {
+    pub at_s: f64,
+    pub message: v1::ObserveMessage,
+}
+
+/// Where a feed sends: `false` once the stream is gone.
+struct Feed<'a> {
+    feed: &'a mpsc::Sender<Result<Timed, Status>>,
+}
+
+impl Feed<'_> {
+    fn send(&self, at_s: f64, item: Item) -> bool {
+        match v1::ObserveMessage::wrap(item) {
+            Some(message) => self.feed.blocking_send(Ok(Timed { at_s, message })).is_ok(),
+            None => true,
+        }
+    }
+
+    fn fail(&self, status: Status) {
+        let _ = self.feed.blocking_send(Err(status));
+    }
+}
+
+/// What comes before a replay's start offset is held back: of it, only the newest
+/// tick at or before the offset (its surface and instrument states) and the events
+/// stamped exactly at the offset go out, at once, when the first message past the
+/// offset comes (or the recording ends), so that a viewer shows the liver as it was
+/// there; earlier ticks and events are not sent. Later messages go at their time
+/// after the offset.
+struct FromOffset {
+    offset: f64,
+    held: Vec<Item>,
+    held_tick: Option<u64>,
+    before: bool,
+}
+
+impl FromOffset {
+    fn new(offset: f64) -> Self {
+        FromOffset {
+            offset,
+            held: Vec::new(),
+            held_tick: None,
+            before: offset > 0.0,
+        }
+    }
+
+    /// Takes the message of simulated time `t`; `false` once the stream is gone.
+    fn pass(&mut self, t: f64, item: Item, out: &Feed) -> bool {
+        if self.before {
+            if t <= self.offset {
+                match &item {
+                    Item::Surface(f) => {
+                        self.held.retain(|i| matches!(i, Item::Event(_)));
+                        self.held_tick = Some(f.tick);
+                        self.held.push(item);
+                    }
+                    Item::State(s) if self.held_tick == Some(s.tick) => self.held.push(item),
+                    Item::Event(_) if t == self.offset => self.held.push(item),
+                    _ => {}
+                }
+                return true;
+            }
+            self.before = false;
+            if !self.flush(out) {
+                return false;
+            }
+        }
+        out.send(t - self.offset, item)
+    }
+
+    /// Sends what is still held (a recording that ended at or before the offset).
+    fn flush(&mut self, out: &Feed) -> bool {
+        self.held.drain(..).all(|item| out.send(0.0, item))
+    }
+}
+
+/// The recording's frames, instrument states and events from `offset` on, decoded
+/// one at a time onto `feed` (bounded: this waits for the stream), until the file
+/// ends, a message does not read (the stream then ends with its status) or the
+/// stream is gone. Runs on a blocking thread.
+pub fn read_recorded(
+    recording: Recording,
+    name: &str,
+    offset: f64,
+    feed: mpsc::Sender<Result<Timed, Status>>,
+) {
+    let out = Feed { feed: &feed };
+    let mut gate = FromOffset::new(offset);
+    for m in recording.messages() {
+        let m = match m {
+            Ok(m) => m,
+            Err(e) => return out.fail(read_status(name, &e)),
+        };
+        let (t, item) = match m.message {
+            Recorded::Scene(_) | Recorded::Pose(_) => continue,
+            Recorded::Surface(f) => (f.sim_time_s, Item::Surface(f)),
+            Recorded::Instrument(s) => (s.sim_time_s, Item::State(s)),
+            Recorded::Event(e) => (e.sim_time_s, Item::Event(e)),
+        };
+        if !gate.pass(t, item, &out) {
+            return;
+        }
+    }
+    gate.flush(&out);
+}
+
+/// Whether a recorded event came from the physics (and is derived again by a
+/// re-simulation) rather than from the people and machinery around it.
+fn from_physics(e: &v1::Event) -> bool {
+    e.kind == v1::EventKind::ContactBegan as i32 || e.kind == v1::EventKind::ContactEnded as i32
+}
+
+/// The recording re-simulated (see the module documentation) from `offset` on, onto
+/// `feed` as [`read_recorded`] does. Every tick before the offset is simulated too
+/// (the physics needs them) but not sent. A scene that no longer builds or a mesh
+/// that is not the recorded one ends the stream with `FAILED_PRECONDITION`.
+pub fn read_resimulated(
+    recording: Recording,
+    name: &str,
+    offset: f64,
+    feed: mpsc::Sender<Result<Timed, Status>>,
+) {
+    let out = Feed { feed: &feed };
+    let started = (|| {
+        let rest = recording
+            .scene()?
+            .rest_surface
+            .map(|s| s.positions)
+            .unwrap_or_default();
+        let resim = Resimulator::new(recording.meta(), &rest, None)?;
+        let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
+        for s in recording.instrument_states()? {
+            states.entry(s.message.tick).or_default().push(s.message);
+        }
+        Ok::<_, crate::recording::ResimError>((resim, states))
+    })();
+    let (mut resim, mut states) = match started {
+        Ok(s) => s,
+        Err(e) => {
+            return out.fail(Status::failed_precondition(format!(
+                "`{name}` cannot be re-simulated: {e}"
+            )));
+        }
+    };
+    let mut contacts = ContactWatch::new(resim.sim.instruments.len());
+    let mut gate = FromOffset::new(offset);
+    for m in recording.messages() {
+        let m = match m {
+            Ok(m) => m,
+            Err(e) => return out.fail(read_status(name, &e)),
+        };
+        let tick = match m.message {
+            Recorded::Event(e) if !from_physics(&e) => {
+                if !gate.pass(e.sim_time_s, Item::Event(e), &out) {
+                    return;
+                }
+                continue;
+            }
+            Recorded::Surface(f) => f.tick,
+            _ => continue,
+        };
+        // Up to and including the recorded tick; ticks the recorder lost hold the
+        // poses.
+        while resim.sim.tick < tick {
+            let recorded = states.remove(&(resim.sim.tick + 1)).unwrap_or_default();
+            if let Err(e) = resim.step(&recorded) {
+                return out.fail(Status::failed_precondition(format!(
+                    "`{name}` cannot be re-simulated: {e}"
+                )));
+            }
+            let sim = &resim.sim;
+            let held_by = |k: usize| {
+                let name = &sim.instruments[k].name;
+                recorded.iter().find(|s| &s.instrument == name)
+            };
+            // The order a session writes a tick in: its contact events, then the
+            // surface and every instrument's state.
+            let mut items = Vec::new();
+            contacts.update(
+                sim,
+                |k| held_by(k).and_then(|r| r.station_id),
+                |e| items.push(Item::Event(e)),
+            );
+            items.push(Item::Surface(v1::SurfaceFrame {
+                tick: sim.tick,
+                sim_time_s: sim.time,
+                positions: surface_positions(sim),
+            }));
+            for k in 0..sim.instruments.len() {
+                let r = held_by(k);
+                items.push(Item::State(instrument_state(
+                    sim,
+                    k,
+                    r.and_then(|r| r.station_id),
+                    r.and_then(|r| r.pose_sequence),
+                )));
+            }
+            let t = sim.time;
+            for item in items {
+                if !gate.pass(t, item, &out) {
+                    return;
+                }
+            }
+        }
+    }
+    gate.flush(&out);
+}
+
+/// Resolves with the reason once the server shuts down.
+async fn shut_down(shutdown: &mut watch::Receiver<Option<String>>) -> String {
+    let reason = match shutdown.wait_for(Option::is_some).await {
+        Ok(reason) => reason.clone(),
+        Err(_) => None,
+    };
+    match reason {
+        Some(reason) => reason,
+        // The registry is gone: nothing will shut this stream down.
+        None => std::future::pending().await,
+    }
+}
+
+/// Sends `feed`'s messages at their times divided by `speed` after now, until the
+/// feed ends (the stream then ends OK), the client goes, or the server shuts down
+/// (the stream then ends with `UNAVAILABLE`, as live streams do).
+pub async fn pace(
+    mut feed: mpsc::Receiver<Result<Timed, Status>>,
+    tx: mpsc::Sender<Result<v1::ObserveMessage, Status>>,
+    speed: f64,
+    mut shutdown: watch::Receiver<Option<String>>,
+) {
+    let start = Instant::now();
+    let ended = |reason: String| Status::unavailable(format!("replay ended: {reason}"));
+    loop {
+        let next = tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            _ = tx.closed() => return,
+            next = feed.recv() => next,
+        };
+        let Timed { at_s, message } = match next {
+            None => return,
+            Some(Err(status)) => {
+                let _ = tx.send(Err(status)).await;
+                return;
+            }
+            Some(Ok(timed)) => timed,
+        };
+        let due = Duration::try_from_secs_f64((at_s / speed).max(0.0))
+            .ok()
+            .and_then(|d| start.checked_add(d));
+        let wait = async {
+            match due {
+                Some(due) => tokio::time::sleep_until(due).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            _ = tx.closed() => return,
+            _ = wait => {}
+        }
+        tokio::select! {
+            biased;
+            reason = shut_down(&mut shutdown) => {
+                let _ = tx.send(Err(ended(reason))).await;
+                return;
+            }
+            sent = tx.send(Ok(message)) => if sent.is_err() {
+                return;
+            },
+        }
+    }
+}
