@@ -9,6 +9,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
 
+use foxglove::schemas::SceneUpdate;
 use laparo_proto::v1;
 use mcap::records::{MessageHeader, Record};
 use mcap::{MAGIC, Summary};
@@ -16,8 +17,8 @@ use mcap::{MAGIC, Summary};
 use super::records::{Records, chunk_records};
 
 use super::{
-    FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE,
-    TOPIC_SURFACE,
+    FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_FOXGLOVE_SCENE, TOPIC_INSTRUMENTS,
+    TOPIC_POSES, TOPIC_SCENE, TOPIC_SURFACE,
 };
 
 /// Why a recording cannot be read.
@@ -194,8 +195,9 @@ impl Recording {
         counts
     }
 
-    /// Every message in file order, decoded. Messages of topics this version does
-    /// not know are skipped; reading ends at the first error.
+    /// Every message of the contract's topics in file order, decoded. Messages of
+    /// other topics (`/foxglove/scene`, for viewers, and any this version does not
+    /// know) are skipped undecoded; reading ends at the first error.
     pub fn messages(&self) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> + '_ {
         self.raw().filter_map(move |m| {
             let (topic, header, data) = match m {
@@ -316,6 +318,11 @@ impl Recording {
 
     pub fn events(&self) -> Result<Vec<Stamped<v1::Event>>, ReadError> {
         self.topic(TOPIC_EVENTS)
+    }
+
+    /// The Foxglove scene updates, decoded only when asked for.
+    pub fn scene_updates(&self) -> Result<Vec<Stamped<SceneUpdate>>, ReadError> {
+        self.topic(TOPIC_FOXGLOVE_SCENE)
     }
 
     fn decode<T: prost::Message + Default>(
