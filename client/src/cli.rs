@@ -38,7 +38,8 @@ pub enum Command {
     /// session's tick times as a markdown table row.
     Load(LoadArgs),
     /// Summarise a recorded session: duration, ticks, per-instrument path length,
-    /// time in contact, max and mean force, largest force jump, events.
+    /// time in contact, max and mean force, largest force jump, events; with
+    /// --plot, draw the forces over time to a PNG.
     Replay(ReplayArgs),
     /// The recordings on disk.
     #[command(subcommand)]
@@ -51,6 +52,13 @@ pub struct ReplayArgs {
     /// A session recording (.mcap).
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
+    /// Also plot |force| per instrument over simulated time, contact intervals
+    /// shaded, to this PNG file.
+    #[arg(long, value_name = "OUT.png")]
+    pub plot: Option<PathBuf>,
+    /// Size of the plot, pixels.
+    #[arg(long, value_name = "WxH", value_parser = plot_size, default_value = "1200x600", requires = "plot")]
+    pub plot_size: (u32, u32),
 }
 
 /// `laparo recordings …`.
@@ -207,6 +215,21 @@ pub fn haptic_rate(s: &str) -> Result<f64, String> {
             RATE_RANGE_HZ.start(),
             RATE_RANGE_HZ.end()
         ))
+    }
+}
+
+/// A picture's size, `WIDTHxHEIGHT` pixels, from 200×150 to 8000×8000.
+pub fn plot_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("`{s}`: a plot size is WIDTHxHEIGHT in pixels, for example 1200x600");
+    let (w, h) = s.split_once(['x', 'X', '×']).ok_or_else(bad)?;
+    let (w, h): (u32, u32) = (
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    );
+    if (200..=8000).contains(&w) && (150..=8000).contains(&h) {
+        Ok((w, h))
+    } else {
+        Err(format!("{w}x{h}: a plot is 200x150 to 8000x8000 pixels"))
     }
 }
 
@@ -377,5 +400,37 @@ mod tests {
         };
         assert_eq!(demo.seconds, Duration::from_secs(10));
         assert!(parse(&["demo", "--seconds", "-1"]).is_err());
+    }
+
+    #[test]
+    fn replay_plots_on_request() {
+        let Command::Replay(a) = parse(&["replay", "r.mcap"]).unwrap().command else {
+            panic!("not replay")
+        };
+        assert_eq!((a.plot, a.plot_size), (None, (1200, 600)));
+        let Command::Replay(a) = parse(&[
+            "replay",
+            "r.mcap",
+            "--plot",
+            "f.png",
+            "--plot-size",
+            "800x450",
+        ])
+        .unwrap()
+        .command
+        else {
+            panic!("not replay")
+        };
+        assert_eq!(a.plot, Some(PathBuf::from("f.png")));
+        assert_eq!(a.plot_size, (800, 450));
+        for bad in [
+            "800", "800x", "x450", "0x450", "100x100", "9000x450", "wide",
+        ] {
+            let e =
+                parse(&["replay", "r.mcap", "--plot", "f.png", "--plot-size", bad]).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad}");
+        }
+        let e = parse(&["replay", "r.mcap", "--plot-size", "800x450"]).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
     }
 }
