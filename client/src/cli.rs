@@ -38,9 +38,10 @@ pub enum Command {
     /// session's tick times as a markdown table row.
     Load(LoadArgs),
     /// Summarise a recorded session: duration, ticks, per-instrument path length,
-    /// time in contact, max and mean force, largest force jump, events. With
-    /// `--server`, watch the server play one of its recordings back instead, as
-    /// `observe` watches a session.
+    /// time in contact, max and mean force, largest force jump, events; with
+    /// --plot, draw the forces over time to a PNG. With `--server`, watch the
+    /// server play one of its recordings back instead, as `observe` watches a
+    /// session.
     Replay(ReplayArgs),
     /// The recordings on disk.
     #[command(subcommand)]
@@ -74,6 +75,13 @@ pub struct ReplayArgs {
     /// recordings (as `laparo recordings list --server` shows it).
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
+    /// Also plot |force| per instrument over simulated time, contact intervals
+    /// shaded, to this PNG file.
+    #[arg(long, value_name = "OUT.png", conflicts_with = "server")]
+    pub plot: Option<PathBuf>,
+    /// Size of the plot, pixels.
+    #[arg(long, value_name = "WxH", value_parser = plot_size, default_value = "1200x600", requires = "plot")]
+    pub plot_size: (u32, u32),
     #[command(flatten)]
     pub remote: RemoteArgs,
     /// Playback speed factor: 2 plays twice as fast (the server takes 0.01 to 100).
@@ -82,6 +90,10 @@ pub struct ReplayArgs {
     /// Where to start, s of simulated time from the start of the recording.
     #[arg(long, value_name = "T", requires = "server", value_parser = offset)]
     pub from: Option<f64>,
+    /// Have the server re-run the recorded poses through the recorded scene and
+    /// send that, instead of the recorded frames.
+    #[arg(long, requires = "server")]
+    pub resimulate: bool,
 }
 
 /// A server to ask instead of reading files here.
@@ -298,6 +310,21 @@ pub fn offset(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("{v} s: an offset must be finite and ≥ 0"))
+    }
+}
+
+/// A picture's size, `WIDTHxHEIGHT` pixels, from 200×150 to 8000×8000.
+pub fn plot_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("`{s}`: a plot size is WIDTHxHEIGHT in pixels, for example 1200x600");
+    let (w, h) = s.split_once(['x', 'X', '×']).ok_or_else(bad)?;
+    let (w, h): (u32, u32) = (
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    );
+    if (200..=8000).contains(&w) && (150..=8000).contains(&h) {
+        Ok((w, h))
+    } else {
+        Err(format!("{w}x{h}: a plot is 200x150 to 8000x8000 pixels"))
     }
 }
 
@@ -530,5 +557,37 @@ mod tests {
         };
         assert_eq!(demo.seconds, Duration::from_secs(10));
         assert!(parse(&["demo", "--seconds", "-1"]).is_err());
+    }
+
+    #[test]
+    fn replay_plots_on_request() {
+        let Command::Replay(a) = parse(&["replay", "r.mcap"]).unwrap().command else {
+            panic!("not replay")
+        };
+        assert_eq!((a.plot, a.plot_size), (None, (1200, 600)));
+        let Command::Replay(a) = parse(&[
+            "replay",
+            "r.mcap",
+            "--plot",
+            "f.png",
+            "--plot-size",
+            "800x450",
+        ])
+        .unwrap()
+        .command
+        else {
+            panic!("not replay")
+        };
+        assert_eq!(a.plot, Some(PathBuf::from("f.png")));
+        assert_eq!(a.plot_size, (800, 450));
+        for bad in [
+            "800", "800x", "x450", "0x450", "100x100", "9000x450", "wide",
+        ] {
+            let e =
+                parse(&["replay", "r.mcap", "--plot", "f.png", "--plot-size", bad]).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad}");
+        }
+        let e = parse(&["replay", "r.mcap", "--plot-size", "800x450"]).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
     }
 }

@@ -10,6 +10,7 @@
 //!   latency ([`latency`]) with scripted gestures ([`trajectory`]).
 //! - [`observe`]: [`run_observe`](observe::run_observe), a live view of a session.
 //! - [`load`]: [`run_load`](load::run_load), N concurrent stations on one session.
+//! - [`plot`]: `laparo replay --plot`, a recording's forces over time as a PNG.
 //! - [`cli`]: the `laparo` command line's arguments.
 //!
 //! Replay and the demo land with the server and recording work.
@@ -35,5 +36,6 @@ pub mod haptics;
 pub mod latency;
 pub mod load;
 pub mod observe;
+pub mod plot;
 pub mod station;
 pub mod trajectory;

@@ -174,6 +174,43 @@ async fn replay(args: ReplayArgs) -> Result<(), BoxError> {
     for (kind, n) in &s.events {
         println!("  event {kind:<28} {n}");
     }
+    if let Some(out) = &args.plot {
+        use laparo_client::plot::{draw, force_series};
+        let states = recording.instrument_states()?;
+        let series = force_series(states.iter().map(|s| &s.message));
+        let title = format!(
+            "session {} of scene {}: force on each instrument",
+            meta.session_id, meta.scene
+        );
+        let r = draw(&series, &title, out, args.plot_size)?;
+        let plotted: Vec<&str> = series.iter().map(|s| s.instrument.as_str()).collect();
+        let left_out: Vec<&str> = s
+            .instruments
+            .keys()
+            .map(String::as_str)
+            .filter(|name| !plotted.contains(name))
+            .collect();
+        println!(
+            "  plot                 {} ({}x{} px): |force| {:.3}–{:.3} N over {:.3}–{:.3} s simulated, {}{}",
+            out.display(),
+            args.plot_size.0,
+            args.plot_size.1,
+            r.force_n.0,
+            r.force_n.1,
+            r.time_s.0,
+            r.time_s.1,
+            if plotted.is_empty() {
+                "no instrument".to_string()
+            } else {
+                plotted.join(", ")
+            },
+            if left_out.is_empty() {
+                String::new()
+            } else {
+                format!(" (left out, never posed: {})", left_out.join(", "))
+            }
+        );
+    }
     Ok(())
 }
 
@@ -268,7 +305,11 @@ async fn watch_replay(connect: ConnectConfig, args: &ReplayArgs) -> Result<(), B
         file: file.clone(),
         speed: args.speed,
         start_offset_s: args.from,
-        mode: ReplayMode::Recorded as i32,
+        mode: if args.resimulate {
+            ReplayMode::Resimulate
+        } else {
+            ReplayMode::Recorded
+        } as i32,
     };
     let config = ObserveConfig {
         connect,

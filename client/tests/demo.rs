@@ -3,6 +3,8 @@
 
 use std::process::Command;
 
+use laparo_client::plot::{COLORS, Picture};
+
 #[test]
 fn the_demo_presses_the_liver_and_reports() {
     let dir = std::env::temp_dir().join(format!("laparo-demo-{}", std::process::id()));
@@ -58,6 +60,79 @@ fn the_demo_presses_the_liver_and_reports() {
         .unwrap_or_else(|| panic!("{replay}"));
     assert!(ticks > 100, "{replay}");
     assert!(replay.contains("left: path"), "{replay}");
+    // The forces plotted from the same recording.
+    let png = dir.join("forces.png");
+    let plotted = laparo(&[
+        "replay".as_ref(),
+        path.as_os_str(),
+        "--plot".as_ref(),
+        png.as_os_str(),
+        "--plot-size".as_ref(),
+        "900x480".as_ref(),
+    ]);
+    let line = plotted
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("plot"))
+        .unwrap_or_else(|| panic!("no plot line in\n{plotted}"));
+    assert!(
+        line.contains("forces.png") && line.contains("left"),
+        "{line}"
+    );
+    // It reads `|force| 0.000–F N`: F is above the largest force, with room for
+    // the legend.
+    let top: f64 = line
+        .split_once("–")
+        .and_then(|(_, rest)| rest.split_once(' '))
+        .and_then(|(f, _)| f.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    let max_replayed: f64 = plotted
+        .lines()
+        .find_map(|l| {
+            l.split_once("force max ")?
+                .1
+                .split_once(' ')?
+                .0
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("{plotted}"));
+    assert!(
+        top > 1.1 * max_replayed && top < 2.0 * max_replayed,
+        "{line}"
+    );
+    let picture = Picture::read(&png).unwrap();
+    assert_eq!((picture.width, picture.height), (900, 480));
+    // The left instrument's curve across the chart (above the contact lanes), and
+    // its contact lane filled: the demo pressed the liver.
+    let colour = |(r, g, b): (u8, u8, u8)| [r, g, b];
+    let curve = picture
+        .pixels()
+        .filter(|&(_, y, p)| y < 360 && p == colour(COLORS[0]))
+        .count();
+    assert!(curve > 450, "{curve} pixels of the force curve");
+    let lane = picture
+        .pixels()
+        .filter(|&(_, y, p)| y >= 380 && p == colour(COLORS[0]))
+        .count();
+    assert!(lane > 100, "{lane} pixels of the contact lane");
+    // A path that cannot be written: a clear error, exit status 1.
+    let bad = dir.join("no-such-dir").join("forces.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+        .args([
+            "replay".as_ref(),
+            path.as_os_str(),
+            "--plot".as_ref(),
+            bad.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("cannot plot to {}", bad.display()))
+            && stderr.contains("No such file or directory"),
+        "{stderr}"
+    );
     let list = laparo(&[
         "recordings".as_ref(),
         "list".as_ref(),

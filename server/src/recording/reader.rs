@@ -11,6 +11,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::io::Cursor;
 use std::path::Path;
 
+use foxglove::schemas::SceneUpdate;
 use laparo_proto::v1;
 use mcap::records::{MessageHeader, Record};
 use mcap::{MAGIC, Summary};
@@ -19,8 +20,8 @@ use super::records::{Records, chunk_records};
 use super::recover::{RecoverError, recover_bytes};
 
 use super::{
-    FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE,
-    TOPIC_SURFACE,
+    FORMAT_VERSION, METADATA_NAME, TOPIC_EVENTS, TOPIC_FOXGLOVE_SCENE, TOPIC_INSTRUMENTS,
+    TOPIC_POSES, TOPIC_SCENE, TOPIC_SURFACE,
 };
 
 /// Why a recording cannot be read.
@@ -319,8 +320,9 @@ impl Recording {
         counts
     }
 
-    /// Every message in file order, decoded. Messages of topics this version does
-    /// not know are skipped; reading ends at the first error.
+    /// Every message of the contract's topics in file order, decoded. Messages of
+    /// other topics (`/foxglove/scene`, for viewers, and any this version does not
+    /// know) are skipped undecoded; reading ends at the first error.
     pub fn messages(&self) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> + '_ {
         self.raw().filter_map(move |m| {
             let (topic, header, data) = match m {
@@ -444,6 +446,11 @@ impl Recording {
 
     pub fn events(&self) -> Result<Vec<Stamped<v1::Event>>, ReadError> {
         self.topic(TOPIC_EVENTS)
+    }
+
+    /// The Foxglove scene updates, decoded only when asked for.
+    pub fn scene_updates(&self) -> Result<Vec<Stamped<SceneUpdate>>, ReadError> {
+        self.topic(TOPIC_FOXGLOVE_SCENE)
     }
 
     fn decode<T: prost::Message + Default>(

@@ -85,6 +85,8 @@ impl Script {
     }
 }
 
+mod scene_updates;
+
 fn temp() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
 }
@@ -173,6 +175,13 @@ fn a_scripted_run_reads_back_bit_for_bit() {
     assert_eq!(counts[TOPIC_SURFACE], 40);
     assert_eq!(counts[TOPIC_POSES], 40);
     assert_eq!(counts[TOPIC_SCENE], 1);
+    assert_eq!(counts[TOPIC_FOXGLOVE_SCENE], 40);
+    // The contract's messages alone, decoded; the viewers' channel is left alone.
+    let decoded = rec.messages().map(Result::unwrap).count() as u64;
+    assert_eq!(
+        decoded,
+        counts.values().sum::<u64>() - counts[TOPIC_FOXGLOVE_SCENE]
+    );
 }
 
 #[test]
@@ -182,11 +191,16 @@ fn every_schema_is_the_contract_named_by_its_message() {
     record_script(&path, 3);
     let rec = Recording::open(&path).unwrap();
     let summary = rec.mcap_summary();
-    assert_eq!(summary.channels.len(), 5);
+    assert_eq!(summary.channels.len(), 6);
     for channel in summary.channels.values() {
         assert_eq!(channel.message_encoding, "protobuf");
         let schema = channel.schema.as_ref().unwrap();
         assert_eq!(schema.encoding, "protobuf");
+        if channel.topic == TOPIC_FOXGLOVE_SCENE {
+            // Foxglove's own schema (tests/scene_updates.rs).
+            continue;
+        }
+        assert_eq!(&schema.data[..], laparo_proto::FILE_DESCRIPTOR_SET);
         let set = prost_types::FileDescriptorSet::decode(&*schema.data).unwrap();
         let (package, message) = schema.name.rsplit_once('.').unwrap();
         assert!(
@@ -210,7 +224,8 @@ fn every_schema_is_the_contract_named_by_its_message() {
             TOPIC_POSES,
             TOPIC_SURFACE,
             TOPIC_INSTRUMENTS,
-            TOPIC_EVENTS
+            TOPIC_EVENTS,
+            TOPIC_FOXGLOVE_SCENE
         ]
         .into_iter()
         .collect()
@@ -761,7 +776,8 @@ fn the_duration_is_the_last_frames_time_from_the_index_or_every_frame() {
             surfaces[ticks - 1].message.sim_time_s.to_bits(),
             "cut after chunk {k}"
         );
-        assert_eq!(partial.messages().count() as u64, messages);
+        // messages() leaves out the Foxglove channel: one scene update a tick.
+        assert_eq!(partial.messages().count() as u64 + ticks as u64, messages);
         assert_eq!(partial.surfaces().unwrap()[..], surfaces[..ticks]);
     }
     // Complete bytes read unfinished are just the recording.

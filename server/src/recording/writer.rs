@@ -1,6 +1,7 @@
 //! The MCAP side of a recording: the file's schemas and channels, one message per
-//! pose, surface frame, instrument state and event, and chunks closed often enough
-//! that a killed server loses at most the last second.
+//! pose, surface frame, instrument state and event, a Foxglove scene update per
+//! tick, and chunks closed often enough that a killed server loses at most the last
+//! second.
 //!
 //! Synchronous and single-threaded: [`super::recorder`] runs it on its own thread.
 
@@ -10,15 +11,18 @@ use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
 
+use foxglove::Encode;
+use foxglove::schemas::SceneUpdate;
 use laparo_proto::v1;
 use mcap::records::{MessageHeader, Metadata};
 use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
 use prost::Message;
 
+use super::foxglove_scene::SceneUpdates;
 use super::{
     FORMAT_VERSION, METADATA_NAME, SCHEMA_EVENT, SCHEMA_INSTRUMENT, SCHEMA_POSE, SCHEMA_SCENE,
-    SCHEMA_SURFACE, TOPIC_EVENTS, TOPIC_INSTRUMENTS, TOPIC_POSES, TOPIC_SCENE, TOPIC_SURFACE,
-    sim_log_time, unix_ns,
+    SCHEMA_SURFACE, TOPIC_EVENTS, TOPIC_FOXGLOVE_SCENE, TOPIC_INSTRUMENTS, TOPIC_POSES,
+    TOPIC_SCENE, TOPIC_SURFACE, sim_log_time, unix_ns,
 };
 use crate::session::Frame;
 
@@ -43,7 +47,7 @@ pub struct SessionHeader {
     pub description: v1::SceneDescription,
 }
 
-/// Channel ids of the five topics.
+/// Channel ids of the six topics.
 #[derive(Clone, Copy, Debug)]
 struct Channels {
     scene: u16,
@@ -51,6 +55,7 @@ struct Channels {
     surface: u16,
     instruments: u16,
     events: u16,
+    foxglove_scene: u16,
 }
 
 /// An MCAP file being written.
@@ -60,6 +65,8 @@ pub struct McapSink<W: Write + Seek> {
     start_ns: u64,
     sequence: u32,
     buf: Vec<u8>,
+    /// Builds the `/foxglove/scene` updates.
+    scene_updates: SceneUpdates,
     /// When the oldest message of the open chunk was written; `None`: no open chunk.
     open_since: Option<Instant>,
     /// Messages written so far.
@@ -96,6 +103,20 @@ impl<W: Write + Seek> McapSink<W> {
             surface: channel(&mut writer, TOPIC_SURFACE, SCHEMA_SURFACE)?,
             instruments: channel(&mut writer, TOPIC_INSTRUMENTS, SCHEMA_INSTRUMENT)?,
             events: channel(&mut writer, TOPIC_EVENTS, SCHEMA_EVENT)?,
+            foxglove_scene: {
+                let schema = SceneUpdate::get_schema().ok_or_else(|| {
+                    McapError::Io(std::io::Error::other(
+                        "foxglove states no SceneUpdate schema",
+                    ))
+                })?;
+                let schema = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+                writer.add_channel(
+                    schema,
+                    TOPIC_FOXGLOVE_SCENE,
+                    &SceneUpdate::get_message_encoding(),
+                    &no_metadata,
+                )?
+            },
         };
         let start_ns = unix_ns(header.start);
         let mut sink = McapSink {
@@ -104,6 +125,7 @@ impl<W: Write + Seek> McapSink<W> {
             start_ns,
             sequence: 0,
             buf: Vec::new(),
+            scene_updates: SceneUpdates::new(&header.description),
             open_since: None,
             messages: 0,
         };
@@ -140,9 +162,19 @@ impl<W: Write + Seek> McapSink<W> {
         publish_time: u64,
         m: &impl Message,
     ) -> McapResult<()> {
+        self.write_with(channel, log_time, publish_time, |buf| m.encode(buf))
+    }
+
+    /// Writes the message that `encode` puts in the (cleared) buffer.
+    fn write_with<E: std::error::Error + Send + Sync + 'static>(
+        &mut self,
+        channel: u16,
+        log_time: u64,
+        publish_time: u64,
+        encode: impl FnOnce(&mut Vec<u8>) -> Result<(), E>,
+    ) -> McapResult<()> {
         self.buf.clear();
-        m.encode(&mut self.buf)
-            .map_err(|e| McapError::Io(std::io::Error::other(e)))?;
+        encode(&mut self.buf).map_err(|e| McapError::Io(std::io::Error::other(e)))?;
         self.writer.write_to_known_channel(
             &MessageHeader {
                 channel_id: channel,
@@ -164,8 +196,8 @@ impl<W: Write + Seek> McapSink<W> {
         self.write(self.channels.poses, t, t, pose)
     }
 
-    /// One tick: the surface, then every instrument's state. `wall` is when the
-    /// tick was published.
+    /// One tick: the surface, every instrument's state, then the tick's Foxglove
+    /// scene update. `wall` is when the tick was published.
     pub fn write_frame(&mut self, frame: &Frame, wall: SystemTime) -> McapResult<()> {
         let (log, publish) = (self.log_time(frame.sim_time), unix_ns(wall));
         let surface = v1::SurfaceFrame {
@@ -177,7 +209,10 @@ impl<W: Write + Seek> McapSink<W> {
         for state in &frame.instruments {
             self.write(self.channels.instruments, log, publish, state)?;
         }
-        Ok(())
+        let update = self.scene_updates.update(frame, log);
+        self.write_with(self.channels.foxglove_scene, log, publish, |buf| {
+            Encode::encode(&update, buf)
+        })
     }
 
     /// An event; `wall` is when it happened.
