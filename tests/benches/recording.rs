@@ -12,7 +12,8 @@
 //! thread competes with both mechanics threads and the driver.
 //!
 //! `cargo bench -p laparo-tests --bench recording` (`LAPARO_MESH_DIR` to find
-//! liver-20k, default `../shared/data/liver`; `LAPARO_BENCH_SECONDS`, default 20).
+//! liver-20k, default `../shared/data/liver`; `LAPARO_BENCH_SECONDS`, default 20;
+//! `LAPARO_BENCH_KEEP=DIR` keeps the recordings in DIR).
 
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -68,8 +69,14 @@ struct Row {
 }
 
 fn run(label: &'static str, scene: Scene, seconds: f64) -> Row {
-    let dir = std::env::temp_dir().join(format!("laparo-bench-rec-{}-{label}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    // LAPARO_BENCH_KEEP=DIR keeps the recordings there, to look into them.
+    let keep = std::env::var_os("LAPARO_BENCH_KEEP").map(PathBuf::from);
+    let dir = keep.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("laparo-bench-rec-{}-{label}", std::process::id()))
+    });
+    if keep.is_none() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
     std::fs::create_dir_all(&dir).expect("a temporary folder");
     let recorded = Session::start(
         format!("rec-{label}"),
@@ -168,7 +175,9 @@ fn run(label: &'static str, scene: Scene, seconds: f64) -> Row {
         backlog: stats.max_backlog.load(Ordering::Relaxed),
         lag_ms: stats.max_lag_us.load(Ordering::Relaxed) as f64 * 1e-3,
     };
-    let _ = std::fs::remove_dir_all(&dir);
+    if keep.is_none() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
     row
 }
 

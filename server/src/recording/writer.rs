@@ -18,7 +18,7 @@ use mcap::records::{MessageHeader, Metadata};
 use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
 use prost::Message;
 
-use super::foxglove_scene::SceneUpdates;
+use super::foxglove_scene::{self, SceneUpdates};
 use super::{
     FORMAT_VERSION, METADATA_NAME, SCHEMA_EVENT, SCHEMA_INSTRUMENT, SCHEMA_POSE, SCHEMA_SCENE,
     SCHEMA_SURFACE, TOPIC_EVENTS, TOPIC_FOXGLOVE_SCENE, TOPIC_INSTRUMENTS, TOPIC_POSES,
@@ -67,6 +67,8 @@ pub struct McapSink<W: Write + Seek> {
     buf: Vec<u8>,
     /// Builds the `/foxglove/scene` updates.
     scene_updates: SceneUpdates,
+    /// One tick in how many gets a scene update ([`foxglove_scene::stride`]).
+    foxglove_stride: u64,
     /// When the oldest message of the open chunk was written; `None`: no open chunk.
     open_since: Option<Instant>,
     /// Messages written so far.
@@ -126,6 +128,13 @@ impl<W: Write + Seek> McapSink<W> {
             sequence: 0,
             buf: Vec::new(),
             scene_updates: SceneUpdates::new(&header.description),
+            foxglove_stride: foxglove_scene::stride(
+                header
+                    .description
+                    .summary
+                    .as_ref()
+                    .map_or(0.0, |s| s.mechanics_rate_hz),
+            ),
             open_since: None,
             messages: 0,
         };
@@ -197,7 +206,7 @@ impl<W: Write + Seek> McapSink<W> {
     }
 
     /// One tick: the surface, every instrument's state, then the tick's Foxglove
-    /// scene update. `wall` is when the tick was published.
+    /// scene update if the tick is drawn ([`foxglove_scene::drawn`]). `wall` is when the tick was published.
     pub fn write_frame(&mut self, frame: &Frame, wall: SystemTime) -> McapResult<()> {
         let (log, publish) = (self.log_time(frame.sim_time), unix_ns(wall));
         let surface = v1::SurfaceFrame {
@@ -208,6 +217,9 @@ impl<W: Write + Seek> McapSink<W> {
         self.write(self.channels.surface, log, publish, &surface)?;
         for state in &frame.instruments {
             self.write(self.channels.instruments, log, publish, state)?;
+        }
+        if !foxglove_scene::drawn(frame.tick, self.foxglove_stride) {
+            return Ok(());
         }
         let update = self.scene_updates.update(frame, log);
         self.write_with(self.channels.foxglove_scene, log, publish, |buf| {

@@ -108,7 +108,18 @@ fn every_recorded_tick_is_drawn_for_foxglove() {
 
     let updates = rec.scene_updates().unwrap();
     let surfaces = rec.surfaces().unwrap();
+    // Every third tick at 60 Hz (at most 20 a second), from the first.
+    let stride = super::foxglove_scene::stride(60.0);
+    let surfaces: Vec<_> = surfaces
+        .into_iter()
+        .filter(|s| super::foxglove_scene::drawn(s.message.tick, stride))
+        .collect();
+    let frames: Vec<_> = frames
+        .into_iter()
+        .filter(|f| super::foxglove_scene::drawn(f.tick, stride))
+        .collect();
     assert_eq!(updates.len(), frames.len());
+    assert_eq!(updates.len(), 40usize.div_ceil(stride as usize));
     let scene = &header.description;
     let triangles = &scene.rest_surface.as_ref().unwrap().triangles;
     assert!(!triangles.is_empty() && triangles.len() % 3 == 0);
@@ -248,4 +259,24 @@ fn a_shaft_is_drawn_along_any_axis_and_a_shaft_force_from_where_it_applies() {
         let from = arrows[0].pose.unwrap().position.unwrap();
         assert!((Vector3::new(from.x, from.y, from.z) - q.coords).norm() < 1e-12);
     }
+}
+
+#[test]
+fn scene_updates_are_drawn_at_most_twenty_a_second_with_the_smallest_stride() {
+    use super::super::foxglove_scene::{MAX_RATE_HZ, drawn, stride};
+    for rate in [1.0, 15.0, 20.0, 20.5, 30.0, 60.0, 120.0, 1000.0, 1001.0] {
+        let k = stride(rate);
+        assert!(rate / k as f64 <= MAX_RATE_HZ, "{rate} Hz: stride {k}");
+        assert!(
+            k == 1 || rate / (k - 1) as f64 > MAX_RATE_HZ,
+            "{rate} Hz: stride {k}"
+        );
+        // Over a simulated second of ticks: the first tick, then every k-th.
+        let ticks = rate.round() as u64;
+        let n = (1..=ticks).filter(|&t| drawn(t, k)).count() as u64;
+        assert_eq!(n, ticks.div_ceil(k), "{rate} Hz");
+        assert!(drawn(1, k));
+    }
+    assert_eq!(stride(f64::NAN), 1);
+    assert_eq!(stride(0.0), 1);
 }
