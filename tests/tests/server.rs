@@ -664,6 +664,19 @@ fn recordings_dir(test: &str) -> PathBuf {
     dir
 }
 
+/// A server recording into a fresh directory named after `test`, a channel to
+/// it, and the directory.
+async fn recording_server(test: &str) -> (TestServer, Channel, PathBuf) {
+    let dir = recordings_dir(test);
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    (server, ch, dir)
+}
+
 /// A session recorded through the server.
 struct Recorded {
     /// The recording's path.
@@ -741,13 +754,7 @@ async fn record_press(ch: &Channel, dir: &Path, at_least_s: f64) -> Recorded {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_session_is_recorded_through_a_real_server() {
     use laparo_server::recording::Recording;
-    let dir = recordings_dir("rec");
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
+    let (server, ch, dir) = recording_server("rec").await;
     let Recorded {
         file,
         closed,
@@ -919,13 +926,7 @@ fn assert_paced(got: &[(Duration, v1::ObserveMessage)], offset: f64, speed: f64)
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_recording_is_listed_and_replayed_as_recorded() {
     use laparo_server::recording::Recording;
-    let dir = recordings_dir("replay");
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
+    let (server, ch, dir) = recording_server("replay").await;
     let rec = record_press(&ch, &dir, 2.0).await;
     let name = rec.file.file_name().unwrap().to_str().unwrap().to_string();
     let recording = Recording::open(&rec.file).unwrap();

@@ -94,6 +94,15 @@ pub struct Stamped<T> {
     pub message: T,
 }
 
+/// The file at `path`, named as errors name it, and its bytes.
+fn read(path: &Path) -> Result<(String, Vec<u8>), ReadError> {
+    let file = path.display().to_string();
+    match std::fs::read(path) {
+        Ok(bytes) => Ok((file, bytes)),
+        Err(source) => Err(ReadError::Io { file, source }),
+    }
+}
+
 /// An open recording, read whole into memory (compressed, as on disk: messages are
 /// decoded a chunk at a time as they are read).
 pub struct Recording {
@@ -118,11 +127,7 @@ impl std::fmt::Debug for Recording {
 impl Recording {
     /// Reads and checks the recording at `path`.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
-        let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
-            file: file.clone(),
-            source,
-        })?;
+        let (file, bytes) = read(path)?;
         Self::from_bytes(file, bytes)
     }
 
@@ -133,11 +138,7 @@ impl Recording {
     /// file with the scene and metadata in a first chunk, so an unfinished file reads
     /// as soon as it exists. [`is_complete`](Self::is_complete) tells which it was.
     pub fn open_unfinished(path: &Path) -> Result<Self, ReadError> {
-        let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
-            file: file.clone(),
-            source,
-        })?;
+        let (file, bytes) = read(path)?;
         Self::from_unfinished_bytes(file, bytes)
     }
 
