@@ -294,11 +294,26 @@ impl Drop for Recorder {
     }
 }
 
+/// An error and the errors that caused it, outermost first: an MCAP I/O error
+/// alone says only that writing failed, its source says the disk is full.
+pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let c_text = c.to_string();
+        if !text.contains(&c_text) {
+            text = format!("{text}: {c_text}");
+        }
+        cause = c.source();
+    }
+    text
+}
+
 /// The thread: create the file, write items as they come, close a chunk at least
 /// every [`FLUSH_INTERVAL`], finish on [`Msg::Finish`] or when the sender is gone.
 fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared) {
-    let fail = |what: &str, e: &dyn std::fmt::Display| {
-        let message = format!("{what} {}: {e}", path.display());
+    let fail = |what: &str, e: &dyn std::error::Error| {
+        let message = format!("{what} {}: {}", path.display(), with_causes(e));
         tracing::error!(session = %header.session_id, "recorder: {message}");
         shared.stats.errors.fetch_add(1, Ordering::Relaxed);
         *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(message);

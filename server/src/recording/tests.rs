@@ -566,6 +566,27 @@ fn an_unwritable_directory_is_reported_once_and_nothing_waits() {
     assert!(recorder.finish().is_err());
 }
 
+/// A full disk: `/dev/full` answers every write with ENOSPC. (The recorder opens
+/// its file with `create_new` and so never writes over a device; the writer is
+/// given it here.) The error the recorder reports names the cause, not only that
+/// writing failed.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_disk_is_reported_with_its_cause() {
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        eprintln!("no /dev/full here: nothing to test");
+        return;
+    };
+    let script = Script::new();
+    let header = script.header(SystemTime::now());
+    // The header and scene are written and flushed at once: the disk is full there.
+    let Err(e) = McapSink::new(std::io::BufWriter::new(full), &header) else {
+        panic!("writing to /dev/full succeeded");
+    };
+    let reported = recorder::with_causes(&e);
+    assert!(reported.contains("No space left on device"), "{reported}");
+}
+
 /// Waits until the session has ticked `n` times.
 fn wait_ticks(session: &Session, n: u64) {
     while session
@@ -856,4 +877,87 @@ fn a_directory_lists_recordings_oldest_first_and_says_what_is_wrong_with_the_res
     );
     // A missing directory is an error, not an empty list.
     assert!(list(&d.join("missing"), |_| false).is_err());
+}
+
+#[test]
+fn a_recording_decodes_with_nothing_but_the_schemas_in_it() {
+    use prost_reflect::{DescriptorPool, DynamicMessage, Value};
+    let dir = temp();
+    let path = dir.path().join("generic.mcap");
+    let (frames, poses, _) = record_script(&path, 12);
+    // A generic reader: the mcap crate's message stream, and for each message the
+    // descriptors its channel's schema carries; nothing of the contract's types.
+    let bytes = std::fs::read(&path).unwrap();
+    let mut by_topic: std::collections::BTreeMap<String, Vec<DynamicMessage>> = Default::default();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m
+            .channel
+            .schema
+            .as_ref()
+            .expect("every channel has a schema");
+        let pool = DescriptorPool::decode(&*schema.data).unwrap();
+        let descriptor = pool
+            .get_message_by_name(&schema.name)
+            .unwrap_or_else(|| panic!("{} is not in its own schema", schema.name));
+        let message = DynamicMessage::decode(descriptor, &*m.data).unwrap();
+        by_topic
+            .entry(m.channel.topic.clone())
+            .or_default()
+            .push(message);
+    }
+    let field = |m: &DynamicMessage, name: &str| m.get_field_by_name(name).unwrap().into_owned();
+    // Every tick's surface, field by field.
+    let surfaces = &by_topic[TOPIC_SURFACE];
+    assert_eq!(surfaces.len(), frames.len());
+    for (m, f) in surfaces.iter().zip(&frames) {
+        assert_eq!(field(m, "tick"), Value::U64(f.tick));
+        assert_eq!(field(m, "sim_time_s"), Value::F64(f.sim_time));
+        let Value::List(positions) = field(m, "positions") else {
+            panic!("positions is not a list");
+        };
+        let positions: Vec<u32> = positions
+            .iter()
+            .map(|v| v.as_f32().unwrap().to_bits())
+            .collect();
+        assert_eq!(
+            positions,
+            f.surface.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
+    }
+    // Every pose, with its nested tip.
+    let recorded = &by_topic[TOPIC_POSES];
+    assert_eq!(recorded.len(), poses.len());
+    for (m, p) in recorded.iter().zip(&poses) {
+        assert_eq!(field(m, "sequence"), Value::U64(p.sequence));
+        let Value::Message(pose) = field(m, "pose") else {
+            panic!("pose is not a message");
+        };
+        let Value::Message(tip) = field(&pose, "tip") else {
+            panic!("tip is not a message");
+        };
+        assert_eq!(field(&tip, "z"), Value::F64(p.pose.unwrap().tip.unwrap().z));
+    }
+    // The instruments' states: the force, as the contract names it.
+    let states = &by_topic[TOPIC_INSTRUMENTS];
+    let expected: Vec<_> = frames.iter().flat_map(|f| f.instruments.clone()).collect();
+    assert_eq!(states.len(), expected.len());
+    for (m, s) in states.iter().zip(&expected) {
+        assert_eq!(field(m, "instrument"), Value::String(s.instrument.clone()));
+        assert_eq!(
+            field(m, "held_vertex_count"),
+            Value::U32(s.held_vertex_count)
+        );
+    }
+    // Foxglove's scene updates decode with their own schema: the liver and every
+    // instrument with its force arrow.
+    let updates = &by_topic[TOPIC_FOXGLOVE_SCENE];
+    assert!(!updates.is_empty());
+    for u in updates {
+        let Value::List(entities) = field(u, "entities") else {
+            panic!("entities is not a list");
+        };
+        assert_eq!(entities.len(), 1 + 2 * frames[0].instruments.len());
+    }
+    assert_eq!(by_topic[TOPIC_SCENE].len(), 1);
 }
