@@ -376,6 +376,7 @@ fn instrument_state() -> InstrumentState {
             force: vec3(0.0, 0.0, 0.35),
             axial_n: 0.28,
             torque: vec3(-0.01, 0.0, 0.0),
+            magnitude_n: 0.35,
         }),
     }
 }

@@ -24,9 +24,8 @@
 //! f64 points against `/surface`'s f32.
 //! [`Recording::messages`] skips it; [`Recording::scene_updates`] decodes it on
 //! demand. In Foxglove's Plot panel the fields of `/instruments` plot as they are,
-//! by message path: the force's components and its axial part, for example
-//! `/instruments{instrument=="left"}.force.axial_n` or `….force.force.z`; the
-//! magnitude is not a field (`laparo replay --plot` draws it).
+//! by message path: the force's magnitude, its components and its axial part, for
+//! example `/instruments{instrument=="left"}.force.magnitude_n`.
 //!
 //! Log times are ns since the Unix epoch; ticks are stamped from simulated time so
 //! that a replay is deterministic, while publish times are wall-clock. The metadata

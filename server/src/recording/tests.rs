@@ -942,13 +942,29 @@ fn a_recording_decodes_with_nothing_but_the_schemas_in_it() {
     let states = &by_topic[TOPIC_INSTRUMENTS];
     let expected: Vec<_> = frames.iter().flat_map(|f| f.instruments.clone()).collect();
     assert_eq!(states.len(), expected.len());
+    let mut pushed = false;
     for (m, s) in states.iter().zip(&expected) {
         assert_eq!(field(m, "instrument"), Value::String(s.instrument.clone()));
         assert_eq!(
             field(m, "held_vertex_count"),
             Value::U32(s.held_vertex_count)
         );
+        // The force's magnitude is a field of its own, for plotting.
+        let Value::Message(force) = field(m, "force") else {
+            panic!("force is not a message");
+        };
+        let f = s.force.unwrap().force.unwrap();
+        let norm = (f.x * f.x + f.y * f.y + f.z * f.z).sqrt();
+        let Value::F64(magnitude) = field(&force, "magnitude_n") else {
+            panic!("magnitude_n is not a double");
+        };
+        assert!(
+            (magnitude - norm).abs() <= 1e-12 * norm.max(1.0),
+            "{magnitude} vs {norm}"
+        );
+        pushed |= magnitude > 0.0;
     }
+    assert!(pushed, "the script never pushed");
     // Foxglove's scene updates decode with their own schema: the liver and every
     // instrument with its force arrow.
     let updates = &by_topic[TOPIC_FOXGLOVE_SCENE];

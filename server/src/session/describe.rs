@@ -98,6 +98,7 @@ pub fn instrument_state(
         force: force.map(|f| v1::Force {
             force: Some(to_vec3(&f.force)),
             axial_n: f.axial,
+            magnitude_n: f.force.norm(),
             torque: Some(to_vec3(&f.torque)),
         }),
     }
