@@ -66,11 +66,7 @@ pub fn open(
             .unwrap_or(path.as_os_str())
             .to_string_lossy()
             .into_owned();
-        let bytes = std::fs::read(path).map_err(|source| ReadError::Io {
-            file: file.clone(),
-            source,
-        })?;
-        Recording::from_unfinished_bytes(file, bytes)
+        Recording::open_unfinished_as(path, file)
     };
     let recording = read()?;
     if recording.is_complete() {

@@ -94,20 +94,57 @@ pub struct Stamped<T> {
     pub message: T,
 }
 
-/// The file at `path`, named as errors name it, and its bytes.
-fn read(path: &Path) -> Result<(String, Vec<u8>), ReadError> {
-    let file = path.display().to_string();
-    match std::fs::read(path) {
-        Ok(bytes) => Ok((file, bytes)),
-        Err(source) => Err(ReadError::Io { file, source }),
+/// A recording's bytes: a finished file mapped into memory, or bytes held.
+///
+/// A finished recording is not written again: its recorder has closed it, and
+/// `recover` writes a new file and renames it over the old one, which leaves a map
+/// of the old one intact. Mapping it lets a replay or a listing page through an
+/// hour-long session instead of holding all of it. A file still being written
+/// changes under a map (the open chunk's lengths are filled in when it closes), so
+/// it is read into memory instead; a file is taken as finished when it ends with
+/// the footer's magic bytes, which a recorder writes last.
+enum Bytes {
+    Held(Vec<u8>),
+    Mapped(memmap2::Mmap),
+}
+
+impl std::ops::Deref for Bytes {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        match self {
+            Bytes::Held(v) => v,
+            Bytes::Mapped(m) => m,
+        }
     }
 }
 
-/// An open recording, read whole into memory (compressed, as on disk: messages are
-/// decoded a chunk at a time as they are read).
+/// The file at `path` (named `file` in errors), mapped if finished (see [`Bytes`]).
+fn load(path: &Path, file: &str) -> Result<Bytes, ReadError> {
+    let io = |source| ReadError::Io {
+        file: file.to_string(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    if f.metadata().map_err(io)?.len() >= 2 * MAGIC.len() as u64 {
+        // SAFETY: the map is read only, and kept only for a finished file, which
+        // nothing writes again (see `Bytes`); a file changed in place by hand while
+        // it is read can only give wrong bytes, which every reader here checks
+        // (lengths, CRCs) as it would a corrupt file.
+        let map = unsafe { memmap2::Mmap::map(&f) }.map_err(io)?;
+        if map.starts_with(MAGIC) && map.ends_with(MAGIC) {
+            return Ok(Bytes::Mapped(map));
+        }
+    }
+    std::fs::read(path).map(Bytes::Held).map_err(io)
+}
+
+/// An open recording: a finished file mapped, an unfinished one read into memory
+/// (see [`Bytes`]); compressed, as on disk, and decoded a chunk at a time as its
+/// messages are read.
 pub struct Recording {
     file: String,
-    bytes: Vec<u8>,
+    bytes: Bytes,
     meta: RecordingMeta,
     summary: Summary,
     /// Whether the file had its summary and footer (see
@@ -127,8 +164,9 @@ impl std::fmt::Debug for Recording {
 impl Recording {
     /// Reads and checks the recording at `path`.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
-        let (file, bytes) = read(path)?;
-        Self::from_bytes(file, bytes)
+        let file = path.display().to_string();
+        let bytes = load(path, &file)?;
+        Self::from_loaded(file, bytes)
     }
 
     /// Reads the recording at `path` as far as it goes: a complete file as
@@ -138,8 +176,15 @@ impl Recording {
     /// file with the scene and metadata in a first chunk, so an unfinished file reads
     /// as soon as it exists. [`is_complete`](Self::is_complete) tells which it was.
     pub fn open_unfinished(path: &Path) -> Result<Self, ReadError> {
-        let (file, bytes) = read(path)?;
-        Self::from_unfinished_bytes(file, bytes)
+        Self::open_unfinished_as(path, path.display().to_string())
+    }
+
+    /// [`open_unfinished`](Self::open_unfinished), naming the file `file` in errors.
+    pub fn open_unfinished_as(path: &Path, file: String) -> Result<Self, ReadError> {
+        match load(path, &file)? {
+            mapped @ Bytes::Mapped(_) => Self::from_loaded(file, mapped),
+            Bytes::Held(bytes) => Self::from_unfinished_bytes(file, bytes),
+        }
     }
 
     /// [`open_unfinished`](Self::open_unfinished) of a file held in memory; `file`
@@ -166,8 +211,17 @@ impl Recording {
         Ok(recording)
     }
 
+    /// Whether the file is mapped rather than held in memory (see [`Bytes`]).
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.bytes, Bytes::Mapped(_))
+    }
+
     /// Checks a recording held in memory; `file` names it in errors.
     pub fn from_bytes(file: String, bytes: Vec<u8>) -> Result<Self, ReadError> {
+        Self::from_loaded(file, Bytes::Held(bytes))
+    }
+
+    fn from_loaded(file: String, bytes: Bytes) -> Result<Self, ReadError> {
         if !bytes.starts_with(MAGIC) {
             return Err(ReadError::NotMcap { file });
         }
