@@ -232,55 +232,92 @@ pub fn resimulate_as(
     mut progress: impl FnMut(u64),
 ) -> Result<ResimReport, ResimError> {
     let started = Instant::now();
-    let rest = recording
-        .scene()?
-        .rest_surface
-        .map(|s| s.positions)
-        .unwrap_or_default();
-    let mut resim = Resimulator::new(meta, &rest, scene_dir)?;
-    // The states are small (a pose, a model and a force per instrument and tick);
-    // the surfaces are not, and are streamed.
-    let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
-    for s in recording.instrument_states()? {
-        states.entry(s.message.tick).or_default().push(s.message);
-    }
+    let mut run = Resimulation::new(recording, meta, scene_dir)?;
     let mut report = ResimReport::default();
-    let mut last = 0u64;
     for m in recording.messages() {
         let Recorded::Surface(surface) = m?.message else {
             continue;
         };
-        if surface.tick <= last {
-            return Err(ResimError::OutOfOrder {
-                tick: surface.tick,
-                after: last,
-            });
-        }
-        // Ticks the recorder lost: step through them holding the poses.
-        while resim.sim.tick + 1 < surface.tick {
-            let missing = resim.sim.tick + 1;
-            let poses = states.get(&missing).map(Vec::as_slice).unwrap_or(&[]);
-            if poses.is_empty() {
-                report.missing_ticks += 1;
-                report.first_missing_tick.get_or_insert(missing);
-            }
-            resim.step(poses)?;
+        run.run_to(surface.tick, |sim, recorded| {
             report.steps += 1;
-        }
-        let recorded = states.remove(&surface.tick).unwrap_or_default();
-        if recorded.is_empty() {
-            report.missing_ticks += 1;
-            report.first_missing_tick.get_or_insert(surface.tick);
-        }
-        resim.step(&recorded)?;
-        report.steps += 1;
-        last = surface.tick;
-        compare(&resim.sim, &surface, &recorded, &mut report);
+            if recorded.is_empty() {
+                report.missing_ticks += 1;
+                report.first_missing_tick.get_or_insert(sim.tick);
+            }
+            if sim.tick == surface.tick {
+                compare(sim, &surface, recorded, &mut report);
+            }
+            true
+        })?;
         progress(surface.tick);
     }
-    report.sim_time_s = resim.sim.time;
+    report.sim_time_s = run.sim().time;
     report.elapsed_s = started.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// A recording's poses by tick, and the scene rebuilt to step with them: what
+/// [`resimulate`] and a re-simulated replay both drive.
+pub struct Resimulation {
+    resim: Resimulator,
+    /// The recorded instrument states by tick. They are small (a pose, a model and
+    /// a force per instrument and tick); the surfaces are not, and callers stream
+    /// them.
+    states: BTreeMap<u64, Vec<v1::InstrumentState>>,
+}
+
+impl Resimulation {
+    /// Builds the scene `meta` describes against `recording`'s rest surface (see
+    /// [`Resimulator::new`]) and gathers its recorded states.
+    pub fn new(
+        recording: &Recording,
+        meta: &RecordingMeta,
+        scene_dir: Option<&Path>,
+    ) -> Result<Self, ResimError> {
+        let rest = recording
+            .scene()?
+            .rest_surface
+            .map(|s| s.positions)
+            .unwrap_or_default();
+        let resim = Resimulator::new(meta, &rest, scene_dir)?;
+        let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
+        for s in recording.instrument_states()? {
+            states.entry(s.message.tick).or_default().push(s.message);
+        }
+        Ok(Resimulation { resim, states })
+    }
+
+    pub fn sim(&self) -> &Simulation {
+        &self.resim.sim
+    }
+
+    /// Steps up to and including tick `tick`, each step with the poses recorded for
+    /// it; a tick the recorder lost (no states) holds the previous poses. `each`
+    /// sees the simulation after every step with the states recorded for that tick
+    /// (empty for a lost one), and stops the run by answering `false`, which this
+    /// then returns. A tick at or before the current one is an error: the file's
+    /// ticks go backwards.
+    pub fn run_to(
+        &mut self,
+        tick: u64,
+        mut each: impl FnMut(&Simulation, &[v1::InstrumentState]) -> bool,
+    ) -> Result<bool, ResimError> {
+        if tick <= self.resim.sim.tick {
+            return Err(ResimError::OutOfOrder {
+                tick,
+                after: self.resim.sim.tick,
+            });
+        }
+        while self.resim.sim.tick < tick {
+            let next = self.resim.sim.tick + 1;
+            let recorded = self.states.remove(&next).unwrap_or_default();
+            self.resim.step(&recorded)?;
+            if !each(&self.resim.sim, &recorded) {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
 }
 
 /// Adds one tick's differences to the report.
@@ -297,7 +334,7 @@ fn compare(
     } else {
         f64::INFINITY
     };
-    if d > report.max_surface_deviation_m || report.worst_surface_tick.is_none() && d > 0.0 {
+    if d > report.max_surface_deviation_m {
         report.max_surface_deviation_m = d;
         report.worst_surface_tick = Some(surface.tick);
     }

@@ -5,7 +5,7 @@
 //! Two feeds, one per [`super::recordings::Playback`]:
 //! - [`read_recorded`]: the frames, instrument states and events as recorded;
 //! - [`read_resimulated`]: the recorded poses through a fresh build of the recorded
-//!   scene ([`crate::recording::Resimulator`]), sending the new frames and
+//!   scene ([`crate::recording::Resimulation`]), sending the new frames and
 //!   instrument states, the contact events they give, and the recorded events that
 //!   do not come from the physics (stations joining and leaving, rejected input,
 //!   the recorder's reports). With the same build and scene it sends what
@@ -13,7 +13,6 @@
 //!
 //! Both start at an offset the same way ([`FromOffset`]).
 
-use std::collections::BTreeMap;
 use std::time::Duration;
 
 use laparo_proto::v1;
@@ -23,7 +22,7 @@ use tonic::Status;
 
 use super::recordings::read_status;
 use super::stream::{Item, Wrap};
-use crate::recording::{Recorded, Recording, Resimulator};
+use crate::recording::{Recorded, Recording, ResimError, Resimulation};
 use crate::session::describe::{ContactWatch, instrument_state, surface_positions};
 
 /// A message to send at `at_s` of simulated time after the replay's start offset.
@@ -150,28 +149,14 @@ pub fn read_resimulated(
     feed: mpsc::Sender<Result<Timed, Status>>,
 ) {
     let out = Feed { feed: &feed };
-    let started = (|| {
-        let rest = recording
-            .scene()?
-            .rest_surface
-            .map(|s| s.positions)
-            .unwrap_or_default();
-        let resim = Resimulator::new(recording.meta(), &rest, None)?;
-        let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
-        for s in recording.instrument_states()? {
-            states.entry(s.message.tick).or_default().push(s.message);
-        }
-        Ok::<_, crate::recording::ResimError>((resim, states))
-    })();
-    let (mut resim, mut states) = match started {
-        Ok(s) => s,
-        Err(e) => {
-            return out.fail(Status::failed_precondition(format!(
-                "`{name}` cannot be re-simulated: {e}"
-            )));
-        }
+    let cannot = |e: ResimError| {
+        Status::failed_precondition(format!("`{name}` cannot be re-simulated: {e}"))
     };
-    let mut contacts = ContactWatch::new(resim.sim.instruments.len());
+    let mut run = match Resimulation::new(&recording, recording.meta(), None) {
+        Ok(run) => run,
+        Err(e) => return out.fail(cannot(e)),
+    };
+    let mut contacts = ContactWatch::new(run.sim().instruments.len());
     let mut gate = FromOffset::new(offset);
     for m in recording.messages() {
         let m = match m {
@@ -188,16 +173,7 @@ pub fn read_resimulated(
             Recorded::Surface(f) => f.tick,
             _ => continue,
         };
-        // Up to and including the recorded tick; ticks the recorder lost hold the
-        // poses.
-        while resim.sim.tick < tick {
-            let recorded = states.remove(&(resim.sim.tick + 1)).unwrap_or_default();
-            if let Err(e) = resim.step(&recorded) {
-                return out.fail(Status::failed_precondition(format!(
-                    "`{name}` cannot be re-simulated: {e}"
-                )));
-            }
-            let sim = &resim.sim;
+        let sent = run.run_to(tick, |sim, recorded| {
             let held_by = |k: usize| {
                 let name = &sim.instruments[k].name;
                 recorded.iter().find(|s| &s.instrument == name)
@@ -225,11 +201,12 @@ pub fn read_resimulated(
                 )));
             }
             let t = sim.time;
-            for item in items {
-                if !gate.pass(t, item, &out) {
-                    return;
-                }
-            }
+            items.into_iter().all(|item| gate.pass(t, item, &out))
+        });
+        match sent {
+            Ok(true) => {}
+            Ok(false) => return,
+            Err(e) => return out.fail(cannot(e)),
         }
     }
     gate.flush(&out);
