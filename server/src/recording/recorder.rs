@@ -71,6 +71,18 @@ impl Report {
         }
     }
 
+    /// The event telling the session's clients, at tick `tick` (`sim_time_s`).
+    pub fn event(&self, tick: u64, sim_time_s: f64) -> v1::Event {
+        v1::Event {
+            tick,
+            sim_time_s,
+            kind: self.kind() as i32,
+            station_id: None,
+            instrument: None,
+            detail: self.detail(),
+        }
+    }
+
     /// The event's detail.
     pub fn detail(&self) -> String {
         match self {

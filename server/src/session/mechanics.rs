@@ -42,14 +42,7 @@ impl Mechanics {
     /// Tells the live streams what the recorder reported.
     fn report(&self, report: Option<Report>) {
         if let Some(report) = report {
-            let _ = self.events.send(v1::Event {
-                tick: self.sim.tick,
-                sim_time_s: self.sim.time,
-                kind: report.kind() as i32,
-                station_id: None,
-                instrument: None,
-                detail: report.detail(),
-            });
+            let _ = self.events.send(report.event(self.sim.tick, self.sim.time));
         }
     }
 

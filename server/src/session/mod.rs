@@ -404,20 +404,9 @@ impl Session {
         let Some(r) = &self.recorder else {
             return Vec::new();
         };
-        let (tick, sim_time_s) = (
-            self.stats.tick.load(Ordering::Relaxed),
-            f64::from_bits(self.stats.sim_time_bits.load(Ordering::Relaxed)),
-        );
         r.standing_reports()
             .into_iter()
-            .map(|report| v1::Event {
-                tick,
-                sim_time_s,
-                kind: report.kind() as i32,
-                station_id: None,
-                instrument: None,
-                detail: report.detail(),
-            })
+            .map(|report| self.event(report.kind(), None, None, report.detail()))
             .collect()
     }
 
@@ -462,13 +451,7 @@ fn broadcast_event(
             wall,
         });
         if let Some(report) = offered {
-            let _ = events.send(v1::Event {
-                kind: report.kind() as i32,
-                station_id: None,
-                instrument: None,
-                detail: report.detail(),
-                ..event.clone()
-            });
+            let _ = events.send(report.event(event.tick, event.sim_time_s));
         }
     }
     let _ = events.send(event);
