@@ -125,8 +125,9 @@ fn load(path: &Path, file: &str) -> Result<Bytes, ReadError> {
         file: file.to_string(),
         source,
     };
-    let f = std::fs::File::open(path).map_err(io)?;
-    if f.metadata().map_err(io)?.len() >= 2 * MAGIC.len() as u64 {
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
+    if len >= 2 * MAGIC.len() as u64 {
         // SAFETY: the map is read only, and kept only for a finished file, which
         // nothing writes again (see `Bytes`); a file changed in place by hand while
         // it is read can only give wrong bytes, which every reader here checks
@@ -136,7 +137,10 @@ fn load(path: &Path, file: &str) -> Result<Bytes, ReadError> {
             return Ok(Bytes::Mapped(map));
         }
     }
-    std::fs::read(path).map(Bytes::Held).map_err(io)
+    // The same open file: a map does not move its position.
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::io::Read::read_to_end(&mut f, &mut bytes).map_err(io)?;
+    Ok(Bytes::Held(bytes))
 }
 
 /// An open recording: a finished file mapped, an unfinished one read into memory
