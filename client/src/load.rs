@@ -99,7 +99,7 @@ struct StationLoad {
 }
 
 /// The result of a load run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadSummary {
     /// Session loaded.
     pub session_id: String,
@@ -293,22 +293,7 @@ pub async fn run_load(
         posing_stations,
         pose_rate_hz: config.pose_rate_hz,
         seconds: config.duration.as_secs_f64(),
-        frames_per_station: Vec::new(),
-        states: 0,
-        poses_sent: 0,
-        poses_dropped: 0,
-        errors: BTreeMap::new(),
-        failures: Vec::new(),
-        latency: LatencySummary::default(),
-        missed_deadlines: 0,
-        tick_time_p50_ms: 0.0,
-        tick_time_p99_ms: 0.0,
-        poses_accepted: 0,
-        poses_rejected: 0,
-        recorded: false,
-        recorder_dropped: 0,
-        recorder_max_backlog: 0,
-        recorder_max_lag_ms: 0.0,
+        ..LoadSummary::default()
     };
     for (index, result) in results {
         match result {
@@ -509,21 +494,14 @@ mod tests {
             pose_rate_hz: 250.0,
             seconds: 10.0,
             frames_per_station: vec![600, 590, 601],
-            states: 0,
-            poses_sent: 0,
-            poses_dropped: 0,
-            errors: BTreeMap::new(),
-            failures: Vec::new(),
-            latency: LatencySummary::default(),
             missed_deadlines: 1,
             tick_time_p50_ms: 2.0,
             tick_time_p99_ms: 4.0,
             poses_accepted: 5000,
-            poses_rejected: 0,
             recorded: true,
-            recorder_dropped: 0,
             recorder_max_backlog: 3,
             recorder_max_lag_ms: 0.5,
+            ..LoadSummary::default()
         };
         let header = LoadSummary::markdown_header();
         let columns = header.lines().next().unwrap().matches('|').count();
