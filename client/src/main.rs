@@ -326,6 +326,21 @@ async fn watch_replay(connect: ConnectConfig, args: &ReplayArgs) -> Result<(), B
     Ok(())
 }
 
+/// One row of `laparo recordings list`, from a directory or a server alike.
+fn recording_row(
+    file: &str,
+    session: &str,
+    scene: &str,
+    start_unix_s: f64,
+    duration_s: f64,
+    size_bytes: u64,
+    state: &str,
+) {
+    println!(
+        "| {file} | {session} | {scene} | {start_unix_s:.0} | {duration_s:.2} | {size_bytes} | {state} |"
+    );
+}
+
 /// `laparo recordings list|recover`.
 async fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
     use laparo_server::recording::{FileState, list, recover};
@@ -346,18 +361,18 @@ async fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
                     let start = r
                         .start
                         .map_or(0.0, |t| t.seconds as f64 + t.nanos as f64 * 1e-9);
-                    println!(
-                        "| {} | {} | {} | {start:.0} | {:.2} | {} | {} |",
-                        r.file,
-                        r.session_id,
-                        r.scene,
+                    recording_row(
+                        &r.file,
+                        &r.session_id,
+                        &r.scene,
+                        start,
                         r.duration_s,
                         r.size_bytes,
                         if r.in_progress {
                             "in progress"
                         } else {
                             "complete"
-                        }
+                        },
                     );
                 }
                 return Ok(());
@@ -365,20 +380,20 @@ async fn recordings(command: RecordingsCommand) -> Result<(), BoxError> {
             let listed = list(&dir, |_| false).map_err(|e| format!("{}: {e}", dir.display()))?;
             for l in listed {
                 match &l.entry {
-                    Ok(e) => println!(
-                        "| {} | {} | {} | {:.0} | {:.2} | {} | {} |",
-                        l.file,
-                        e.session_id,
-                        e.scene,
+                    Ok(e) => recording_row(
+                        &l.file,
+                        &e.session_id,
+                        &e.scene,
                         e.start_unix_ns as f64 * 1e-9,
                         e.duration_s,
                         l.size_bytes,
                         match e.state {
                             FileState::Complete => "complete",
                             FileState::InProgress => "in progress",
-                            FileState::Unfinished =>
-                                "no footer: still being recorded, or cut short (`recordings recover` completes it)",
-                        }
+                            FileState::Unfinished => {
+                                "no footer: still being recorded, or cut short (`recordings recover` completes it)"
+                            }
+                        },
                     ),
                     Err(e) => println!("| {} | — | — | — | — | {} | {e} |", l.file, l.size_bytes),
                 }
