@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::SceneError;
+use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::integrate::IntegratorKind;
 
 /// A scene as declared in its TOML file.
@@ -335,13 +336,13 @@ impl Scene {
         if m.cg_max_iterations == 0 {
             return Err(self.invalid("mechanics.cg_max_iterations", "must be at least 1"));
         }
-        if self.instruments.len() > crate::engine::contact::stage::MAX_INSTRUMENTS {
+        if self.instruments.len() > MAX_INSTRUMENTS {
             return Err(self.invalid(
                 "instruments",
                 format!(
                     "{} instruments; a scene has at most {}",
                     self.instruments.len(),
-                    crate::engine::contact::stage::MAX_INSTRUMENTS
+                    MAX_INSTRUMENTS
                 ),
             ));
         }
