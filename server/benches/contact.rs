@@ -4,10 +4,10 @@
 //!
 //! The default scene (liver at 0.19 m held at its upper face and underside, gravity,
 //! 60 Hz implicit ticks) on SOFA's liver and the liver-5k/20k/80k series, settled under
-//! gravity for 1 s, then pressed on its free front (+z) face. The tick is replayed here
-//! as `Simulation::tick` does it — `ContactStage::before_step`, the integrator's step,
-//! `ContactStage::after_step` — so that the contact stage (the two calls) and the
-//! elastic step are timed apart. One core.
+//! gravity for 1 s, then pressed on its free front (+z) face. Each tick is
+//! `Simulation::tick`, timed by its stages (`TickTiming`): the contact stage is
+//! `carry_held_vertices` plus `resolve_contact`, the elastic step is `elastic_step`.
+//! One core.
 //!
 //! Every press moves at 2 cm/s (1 cm per 0.5 s): a few ticks of approach from 2 mm
 //! outside the surface, then, from the first tick the stage moves a vertex, 1 cm
@@ -42,7 +42,8 @@ use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::StepReport;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// Press speed: 1 cm over 0.5 s, in metres per 60 Hz tick.
@@ -71,8 +72,8 @@ fn timed_tick(sim: &mut Simulation) -> TickTimes {
     let step = sim.tick();
     let whole = since(whole);
     TickTimes {
-        contact: sim.last_timing.contact,
-        elastic: sim.last_timing.elastic,
+        contact: sim.last_timing.contact(),
+        elastic: sim.last_timing.elastic_step,
         whole,
         step,
     }

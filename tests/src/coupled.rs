@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, HapticDevice, ModelInbox, PoseOutbox};
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::scene::Simulation;
+use laparo_server::engine::simulation::Simulation;
 
 /// Instrument 0 of `sim` driven by a force loop's device.
 ///

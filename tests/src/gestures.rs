@@ -1,7 +1,7 @@
 //! Instrument gestures on the default liver.
 
 use laparo_client::haptics::Trajectory;
-use laparo_server::engine::scene::Simulation;
+use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// A probe of the default liver's free front face (+z): the tip approaches along −z,

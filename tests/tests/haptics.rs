@@ -4,7 +4,9 @@
 
 use laparo_client::haptics::blend::SMOOTHSTEP_MAX_SLOPE;
 use laparo_client::haptics::{HandDevice, HandParams, ScriptedDevice};
-use laparo_server::engine::scene::{ForceModelKind, Scene, Simulation};
+use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 use laparo_tests::coupled::Coupled;
 use laparo_tests::gestures::{PROBE_SECONDS, Probe};
 

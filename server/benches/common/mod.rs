@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use laparo_server::engine::integrate::IntegratorKind;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 
 /// A mesh of the scaling series: its label and where to find it.
 pub struct MeshCase {

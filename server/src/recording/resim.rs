@@ -28,7 +28,8 @@ use nalgebra::{Point3, Unit, Vector3};
 
 use super::reader::{ReadError, Recorded, Recording, RecordingMeta};
 use crate::engine::contact::InstrumentPose;
-use crate::engine::scene::{Scene, SceneError, Simulation};
+use crate::engine::scene::{Scene, SceneError};
+use crate::engine::simulation::Simulation;
 use crate::session::describe::surface_positions;
 
 #[derive(Debug, thiserror::Error)]

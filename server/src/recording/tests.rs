@@ -14,7 +14,8 @@ use prost::Message;
 use super::writer::McapSink;
 use super::*;
 use crate::engine::contact::pose::InstrumentPose;
-use crate::engine::scene::{Scene, Simulation};
+use crate::engine::scene::Scene;
+use crate::engine::simulation::Simulation;
 use crate::session::describe::{description, instrument_state, surface_positions};
 use crate::session::{Frame, Session, SessionConfig};
 

@@ -4,7 +4,9 @@ use laparo_proto::force::wire::{to_pose, to_vec3};
 use laparo_proto::v1;
 
 use crate::engine::integrate::IntegratorKind;
-use crate::engine::scene::{ForceModelKind, Scene, Simulation};
+use crate::engine::local_model::ForceModelKind;
+use crate::engine::scene::Scene;
+use crate::engine::simulation::Simulation;
 
 /// The scene's summary: sizes, rate, integrator, instruments, force model.
 pub fn summary(scene: &Scene, sim: &Simulation) -> v1::SceneSummary {

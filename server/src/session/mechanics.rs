@@ -10,7 +10,7 @@ use tokio::sync::{broadcast, watch};
 
 use super::describe::{ContactWatch, instrument_state, surface_positions};
 use super::{Frame, PoseIn, Session, SessionStats};
-use crate::engine::scene::Simulation;
+use crate::engine::simulation::Simulation;
 use crate::recording::{Item, Recorder, Report};
 
 /// What the thread owns.

@@ -2,11 +2,11 @@
 //! → tip → push-out → which vertices the instrument holds.
 //!
 //! Around the elastic step:
-//! - [`ContactStage::before_step`]: the vertices an instrument holds follow its rigid
+//! - [`ContactStage::carry_held_vertices`]: the vertices an instrument holds follow its rigid
 //!   motion `R` (eq. 1) — their imposed targets become `R(x)` — and the tick's start
 //!   positions are kept;
 //! - the integrator advances the liver with those vertices imposed (free motion);
-//! - [`ContactStage::after_step`]: for each instrument in turn, the steps of §2.3–2.6
+//! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of §2.3–2.6
 //!   on the surface seen from the instrument, then the hold/release decision, then one
 //!   more push-out pass for every instrument so that a vertex pushed by one is not left
 //!   inside another.
@@ -117,7 +117,7 @@ impl ContactStage {
 
     /// Before the elastic step: held vertices follow their instrument's rigid motion,
     /// and instruments that left the body let go of everything.
-    pub fn before_step(
+    pub fn carry_held_vertices(
         &mut self,
         instruments: &mut [Instrument],
         surface: &Surface,
@@ -155,7 +155,7 @@ impl ContactStage {
 
     /// After the elastic step: the contact algorithm for every instrument, then holds
     /// and releases, reactions and velocities. `dt` is the tick, s.
-    pub fn after_step(
+    pub fn resolve_contact(
         &mut self,
         instruments: &mut [Instrument],
         surface: &Surface,

@@ -3,9 +3,11 @@ use nalgebra::{Point3, Unit, Vector3};
 
 use super::stiffness::{Fit, MIN_INDENTATION, RANGE, Sample, geometric_shaft, geometric_tip};
 use crate::engine::contact::InstrumentPose;
+use crate::engine::local_model::ForceModelKind;
 use crate::engine::mesh::TetMesh;
 use crate::engine::mesh::generate::kuhn_box;
-use crate::engine::scene::{BoxSpec, ForceModelKind, RegionSpec, Scene, Simulation};
+use crate::engine::scene::{BoxSpec, RegionSpec, Scene};
+use crate::engine::simulation::Simulation;
 
 /// A 0.1 × 0.1 × 0.05 m block held at its base, no gravity, its left half (x < 0.05)
 /// of Young's modulus `soft` and its right half `stiff`, one instrument.

@@ -7,6 +7,7 @@ use serde::Deserialize;
 use super::SceneError;
 use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::integrate::IntegratorKind;
+use crate::engine::local_model::ForceModelKind;
 
 /// A scene as declared in its TOML file.
 #[derive(Clone, Debug, Deserialize)]
@@ -180,17 +181,6 @@ pub struct ForceModelSpec {
     pub kind: ForceModelKind,
 }
 
-/// The reaction-force model.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ForceModelKind {
-    /// The paper's: apparent stiffness proportional to the local Young's modulus.
-    #[default]
-    Geometric,
-    /// Stiffness and anchors fitted to the elastic model's reaction each tick.
-    Calibrated,
-}
-
 /// Session recording.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -267,7 +257,7 @@ impl Scene {
             .expect("the embedded default scene is valid")
     }
 
-    pub(super) fn invalid(
+    pub(crate) fn invalid(
         &self,
         path: impl Into<String>,
         message: impl Into<String>,
