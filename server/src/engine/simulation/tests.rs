@@ -107,3 +107,5 @@ fn regions_get_their_own_material() {
     );
     assert_eq!(sim.model.materials[1].poisson_ratio, 0.3);
 }
+
+mod local_models;
