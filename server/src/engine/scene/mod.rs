@@ -2,8 +2,8 @@
 //!
 //! A scene declares what it uses — its mesh and scale, materials, supports, gravity,
 //! integrator and rate, instruments, force model and recording — and
-//! [`Scene::build`] (in [`crate::engine::simulation`]) builds only that. Every quantity is in SI units once loaded
-//! (positions in metres after `mesh.scale`).
+//! [`Scene::build`] (in [`crate::engine::simulation`]) builds only that. Every
+//! quantity is in SI units once loaded (positions in metres after `mesh.scale`).
 //!
 //! Reading is strict: an unknown key, a value of the wrong type, or a value out of
 //! range is an error that names the key's path (`material.poisson_ratio`,
