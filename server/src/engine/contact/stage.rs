@@ -2,14 +2,14 @@
 //! → tip → push-out → which vertices the instrument holds.
 //!
 //! Around the elastic step:
-//! - [`ContactStage::carry_held_vertices`]: the vertices an instrument holds follow its rigid
-//!   motion `R` (eq. 1) — their imposed targets become `R(x)` — and the tick's start
-//!   positions are kept;
+//! - [`ContactStage::carry_held_vertices`]: the vertices an instrument holds follow
+//!   its rigid motion `R` (eq. 1) — their imposed targets become `R(x)` — and the
+//!   tick's start positions are kept;
 //! - the integrator advances the liver with those vertices imposed (free motion);
-//! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of §2.3–2.6
-//!   on the surface seen from the instrument, then the hold/release decision, then one
-//!   more push-out pass for every instrument so that a vertex pushed by one is not left
-//!   inside another.
+//! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of
+//!   §2.3–2.6 on the surface seen from the instrument, then the hold/release decision,
+//!   then one more push-out pass for every instrument so that a vertex pushed by one
+//!   is not left inside another.
 //!
 //! Holding and release. A vertex the stage moved is held: imposed on the elastic model
 //! at that position, so the deformation spreads into the liver. A held vertex the stage
