@@ -2,7 +2,7 @@
 //!
 //! The first `min(N, free instruments)` stations each claim one free instrument of
 //! the session (the default scene has two, "left" and "right") and send scripted
-//! poses (the default press of [`crate::trajectory`]) from a tokio task at the pose
+//! poses (the default press of [`crate::gestures`]) from a tokio task at the pose
 //! rate; no force loop runs. The other stations join with an empty instrument list:
 //! they receive surface frames, instrument states and events, and send no pose.
 //!
@@ -21,6 +21,7 @@ use tokio::task::JoinSet;
 use tokio::time::MissedTickBehavior;
 
 use crate::connect::{ConnectConfig, Connection, connect};
+use crate::gestures::default_press_for;
 use crate::latency::{LatencyHistogram, LatencySummary, SendTimes};
 use crate::proto::force::wire;
 use crate::proto::v1::{
@@ -30,7 +31,6 @@ use crate::proto::v1::{
 use crate::station::{
     JoinedStream, LEAVE_GRACE, SEND_TIMES_CAPACITY, StationError, error_code_name, join,
 };
-use crate::trajectory::default_press_for;
 
 /// What [`run_load`] does.
 #[derive(Clone, Debug, PartialEq)]

@@ -111,7 +111,7 @@ async fn demo(args: DemoArgs) -> Result<(), BoxError> {
         progress: Some(progress_tx),
         on_event: Some(Box::new(|e| println!("event  {}", event_line(e)))),
         stop: Some(ctrl_c()),
-        gesture: Some(Box::new(laparo_client::demo::gesture)),
+        gesture: Some(Box::new(laparo_client::gestures::tip_and_shaft)),
         client_name: "laparo demo".into(),
         ..StationConfig::new(url, session.session_id.clone(), vec!["left".into()])
     };

@@ -4,7 +4,7 @@
 //! [`run_station`] opens a `Station.Join` stream, claims the configured instruments
 //! and, for each one the server grants, runs a [`ForceLoop`] on its own thread with a
 //! [`ScriptedDevice`] following the configured gesture (by default
-//! [`default_press`] on the rest-surface vertex nearest the instrument's trocar). One
+//! [`default_press`](crate::gestures::default_press) on the rest-surface vertex nearest the instrument's trocar). One
 //! tokio task then:
 //!
 //! - every `1/pose_rate_hz` s reads each loop's newest device pose from its
@@ -45,7 +45,7 @@ use crate::proto::v1::{
     SceneDescription, ServerMessage, StationMessage, server_message, station_message,
 };
 
-pub use crate::trajectory::{default_press, default_press_for};
+use crate::gestures::{default_press_for, trocar};
 
 /// Default rate at which device poses are sent, Hz.
 pub const DEFAULT_POSE_RATE_HZ: f64 = 250.0;
@@ -493,7 +493,7 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
         let device = ScriptedDevice::new(path, DEVICE_MAX_FORCE_N, 16);
         let loop_config = ForceLoopConfig {
             rate_hz: config.haptic_rate_hz,
-            ..ForceLoopConfig::new(crate::trajectory::trocar(description))
+            ..ForceLoopConfig::new(trocar(description))
         };
         let (force_loop, inbox, outbox) = ForceLoop::new(loop_config, device)?;
         let clock_offset_s = t0.elapsed().as_secs_f64();
