@@ -11,9 +11,10 @@
 //! - [`observe`]: [`run_observe`](observe::run_observe), a live view of a session.
 //! - [`load`]: [`run_load`](load::run_load), N concurrent stations on one session.
 //! - [`plot`]: `laparo replay --plot`, a recording's forces over time as a PNG.
-//! - [`cli`]: the `laparo` command line's arguments.
-//!
-//! Replay and the demo land with the server and recording work.
+//! - [`gestures`]: the scripted instrument gestures of simulated stations, the demo,
+//!   the workspace's tests and its benchmarks.
+//! - [`cmd`]: the `laparo` command line, one module per subcommand (its arguments,
+//!   runner and printing).
 //!
 //! # Force loop
 //!
@@ -29,7 +30,7 @@
 
 pub use laparo_proto as proto;
 
-pub mod cli;
+pub mod cmd;
 pub mod connect;
 pub mod gestures;
 pub mod haptics;
