@@ -2,14 +2,14 @@
 //! the demo, the workspace's tests and its benchmarks drive instruments with.
 //!
 //! A gesture is a [`Trajectory`]: simulated time `t`, s, to the instrument's tip, m,
-//! and its unit axis (tip toward handle). The axes of [`press`] and [`Probe`] pass
+//! and its unit axis (tip toward handle). The axes of [`press()`] and [`Probe`] pass
 //! through the instrument's trocar, as a laparoscopic instrument pivots about it.
 //!
 //! - [`surface`]: where on the liver to aim: the rest-surface vertex nearest a
 //!   trocar, the front point of the liver, an instrument's trocar.
-//! - [`press`]: a repeated press along the line from the trocar, the default gesture
+//! - [`press`](mod@press): a repeated press along the line from the trocar, the default gesture
 //!   of `laparo station` and `laparo load`.
-//! - [`tip_and_shaft`]: the demo's gesture, the tip pressed in and then the shaft
+//! - [`tip_and_shaft`](mod@tip_and_shaft): the demo's gesture, the tip pressed in and then the shaft
 //!   laid across the front face and pushed in.
 //! - [`probe`]: press, hold, slide while pressed, hold, withdraw: the probe of the
 //!   force-error table and the coupled tests.

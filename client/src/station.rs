@@ -3,22 +3,22 @@
 //!
 //! [`run_station`] goes through named steps:
 //!
-//! 1. join ([`link`]): open a `Station.Join` stream claiming the configured
+//! 1. join (`link`): open a `Station.Join` stream claiming the configured
 //!    instruments and wait for `Joined`;
-//! 2. start ([`instruments`]): for each instrument granted, a
+//! 2. start (`instruments`): for each instrument granted, a
 //!    [`ForceLoop`](crate::haptics::ForceLoop) on its own thread with a
 //!    [`ScriptedDevice`](crate::haptics::ScriptedDevice) following the configured gesture (by
 //!    default [`default_press`](crate::gestures::default_press) on the rest-surface
 //!    vertex nearest the instrument's trocar);
 //! 3. run, in one tokio task, until the configured duration has elapsed, the stop
 //!    future completes, or the server ends the stream:
-//!    - intake of server messages ([`intake`]): every message counted, the
+//!    - intake of server messages (`intake`): every message counted, the
 //!      `local_model` of every `InstrumentState` of its instruments turned into a
 //!      [`LocalModel`](crate::proto::force::LocalModel) and written to that loop's
 //!      [`ModelInbox`](crate::haptics::ModelInbox) (a missing or invalid model is
 //!      counted and skipped: the loop keeps blending the last good one), and the
 //!      pose-to-state latency measured;
-//!    - sending poses ([`poses`]): every `1/pose_rate_hz` s, each loop's newest
+//!    - sending poses (`poses`): every `1/pose_rate_hz` s, each loop's newest
 //!      device pose as a `DevicePose`, numbered by one increasing sequence shared by
 //!      all the station's instruments;
 //!    - progress: a [`StationProgress`] on a watch channel every

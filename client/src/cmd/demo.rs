@@ -1,5 +1,5 @@
 //! `laparo demo`: a server in this process, one station pressing the liver with the
-//! [`tip_and_shaft`] gesture, progress and a summary.
+//! [`tip_and_shaft()`] gesture, progress and a summary.
 
 use std::path::PathBuf;
 use std::time::Duration;

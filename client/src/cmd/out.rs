@@ -2,7 +2,7 @@
 //!
 //! `laparo … | head -1` closes the pipe after the first line. Rust ignores SIGPIPE,
 //! so the next write fails with `BrokenPipe` (where `println!` would panic with
-//! "failed printing to stdout"). Whoever reads has all it wanted: [`line`] then ends
+//! "failed printing to stdout"). Whoever reads has all it wanted: [`line()`] then ends
 //! the process at once, with status 0 and nothing on stderr, as a Unix filter does.
 //! Any other write failure (a full disk under a redirected output) ends it with
 //! status 1 and says why on stderr.
