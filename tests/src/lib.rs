@@ -7,5 +7,4 @@
 //! next haptic tick.
 
 pub mod coupled;
-pub mod gestures;
 pub mod server;

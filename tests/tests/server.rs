@@ -16,7 +16,7 @@ const WAIT: Duration = Duration::from_secs(20);
 
 /// The front point of the rest surface (the default liver's free +z face), m.
 fn front(joined: &v1::Joined) -> [f64; 3] {
-    let f = laparo_client::demo::front(joined.scene.as_ref().unwrap());
+    let f = laparo_client::gestures::front(joined.scene.as_ref().unwrap());
     [f.x, f.y, f.z]
 }
 
