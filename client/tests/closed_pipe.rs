@@ -115,3 +115,47 @@ fn a_listing_piped_into_a_reader_that_stops_after_one_line_ends_quietly() {
     assert_eq!(stderr, "");
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+/// The demo records a session in its own process: a reader that stops after one
+/// line silences it, but the session still closes and its recording is finished
+/// (summary and footer written), not cut off where the pipe closed.
+#[test]
+fn a_demo_whose_reader_stops_after_one_line_still_finishes_its_recording() {
+    let root = std::env::temp_dir().join(format!("laparo-closed-demo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let mut client = laparo()
+        .args(["demo", "--seconds", "1", "--recordings"])
+        .arg(&root)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("laparo runs");
+    let mut stdout = BufReader::new(client.stdout.take().unwrap());
+    let mut first = String::new();
+    stdout.read_line(&mut first).unwrap();
+    assert!(first.starts_with("demo:"), "{first}");
+    drop(stdout);
+    let status = wait_bounded(&mut client);
+    let mut stderr = String::new();
+    client
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    assert!(status.success(), "{status}: {stderr}");
+    let file = std::fs::read_dir(&root)
+        .expect("the demo made its recordings directory")
+        .map(|e| e.expect("a directory entry").path())
+        .find(|p| p.extension().is_some_and(|x| x == "mcap"))
+        .expect("the demo recorded its session");
+    let recording = laparo_server::recording::Recording::open(&file)
+        .expect("the recording is finished: summary and footer written");
+    assert!(recording.is_complete());
+    let surfaces = recording.surfaces().expect("the surfaces read back");
+    assert!(
+        !surfaces.is_empty(),
+        "the finished recording holds the session's ticks"
+    );
+    std::fs::remove_dir_all(&root).unwrap();
+}

@@ -32,6 +32,9 @@ pub struct DemoArgs {
 /// default scene, stops the server and prints the summary.
 pub async fn run(args: DemoArgs) -> Result<(), BoxError> {
     use laparo_server::service::{ServeConfig, serve};
+    // The session is recorded in this process: a reader that goes away early must
+    // not cut the recording short.
+    super::out::finish_when_closed();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
     let url = format!("http://{}", listener.local_addr()?);
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();

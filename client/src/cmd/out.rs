@@ -6,9 +6,26 @@
 //! the process at once, with status 0 and nothing on stderr, as a Unix filter does.
 //! Any other write failure (a full disk under a redirected output) ends it with
 //! status 1 and says why on stderr.
+//!
+//! A command that owns something which must be closed in order — `laparo demo`
+//! serves a recorded session in its own process — calls [`finish_when_closed`]
+//! first: a closed pipe then only silences the rest of its output, and the command
+//! runs to its end, so the session closes and its recording is finished.
 
 use std::fmt;
 use std::io::{self, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Set by [`finish_when_closed`]: a closed pipe silences output instead of exiting.
+static FINISH_WHEN_CLOSED: AtomicBool = AtomicBool::new(false);
+/// Set once standard output was found closed under [`finish_when_closed`].
+static CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// From now on a closed standard output silences the remaining lines instead of
+/// ending the process, so that the command can close what it owns.
+pub fn finish_when_closed() {
+    FINISH_WHEN_CLOSED.store(true, Ordering::Relaxed);
+}
 
 /// Prints one line to standard output through [`line`], as `println!` would.
 macro_rules! say {
@@ -52,8 +69,14 @@ pub fn write_line(w: &mut impl Write, args: fmt::Arguments<'_>) -> io::Result<()
 /// Writes one line to standard output; if that fails, ends the process as
 /// [`Ending::of`] says.
 pub fn line(args: fmt::Arguments<'_>) {
+    if CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
     if let Err(e) = write_line(&mut io::stdout().lock(), args) {
         match Ending::of(&e) {
+            Ending::Quiet if FINISH_WHEN_CLOSED.load(Ordering::Relaxed) => {
+                CLOSED.store(true, Ordering::Relaxed)
+            }
             Ending::Quiet => std::process::exit(0),
             Ending::Failed => {
                 eprintln!("laparo: cannot write to standard output: {e}");
