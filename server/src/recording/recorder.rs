@@ -23,7 +23,7 @@ use std::time::{Instant, SystemTime};
 use laparo_proto::v1;
 
 use super::writer::{FLUSH_INTERVAL, McapSink, SessionHeader};
-use crate::session::Frame;
+use crate::frame::Frame;
 
 /// Items the channel holds: several seconds of ticks and poses at the rates a scene
 /// and a station reach; a tick's frame is an `Arc`, so a full channel is small.

@@ -15,8 +15,10 @@ use super::writer::McapSink;
 use super::*;
 use crate::engine::contact::pose::InstrumentPose;
 use crate::engine::scene::{Scene, Simulation};
-use crate::session::describe::{description, instrument_state, surface_positions};
-use crate::session::{Frame, Session, SessionConfig};
+use crate::frame::Frame;
+use crate::frame::description::description;
+use crate::frame::state::{instrument_state, surface_positions};
+use crate::session::{Session, SessionConfig};
 
 /// The default scene's left instrument pushing straight down into the top of the
 /// liver, 1 mm a tick from 1 cm above it.

@@ -1,10 +1,12 @@
 //! One running scene: its fixed-rate mechanics thread, the poses stations send it, the
 //! frames and events it publishes.
 //!
-//! The mechanics thread ([`mechanics`]) owns the [`Simulation`]; nothing else touches
+//! The mechanics thread ([`mechanics`]) owns the
+//! [`Simulation`](crate::engine::scene::Simulation); nothing else touches
 //! it. Poses reach it through one latest-value slot per instrument (a triple buffer:
 //! the thread reads the newest without waiting, a station overwrites without
-//! waiting). Each tick it publishes a [`Frame`] on a `watch` channel — every stream
+//! waiting). Each tick it publishes a [`Frame`] (made by [`crate::frame`], as a
+//! replay makes it) on a `watch` channel — every stream
 //! sends the newest it has not sent, so a slow client skips frames and never delays
 //! the tick — and events on a `broadcast` channel. The roster (who holds which
 //! instrument) is behind a mutex only the network side takes.
@@ -14,7 +16,6 @@
 //! never waits, and what the recorder leaves out or fails on is published as an
 //! event. The mechanics thread finishes the file when it stops.
 
-pub mod describe;
 pub mod input;
 mod mechanics;
 
@@ -29,19 +30,10 @@ use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
 use crate::engine::scene::{Scene, SceneError};
+use crate::frame::Frame;
+use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
-
-/// The state of the liver and the instruments after one tick.
-#[derive(Debug, Default)]
-pub struct Frame {
-    pub tick: u64,
-    pub sim_time: f64,
-    /// Surface positions, packed f32 triples in the rest surface's order.
-    pub surface: Vec<f32>,
-    /// Every instrument's state, in scene order.
-    pub instruments: Vec<v1::InstrumentState>,
-}
 
 /// How a session runs.
 #[derive(Clone, Debug)]
@@ -109,7 +101,7 @@ impl Session {
         config: &SessionConfig,
     ) -> Result<Arc<Self>, SceneError> {
         let sim = scene.build()?;
-        let description = describe::description(&scene, &sim);
+        let description = description(&scene, &sim);
         let (lo, hi) = sim.mesh.bounding_box();
         let reach = sim.instruments.iter().map(|i| i.length).fold(0.0, f64::max) + 0.05;
         let workspace = Workspace {
