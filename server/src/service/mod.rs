@@ -10,6 +10,7 @@
 
 pub mod auth;
 pub mod observe;
+pub mod read_status;
 pub mod recordings;
 pub mod registry;
 pub mod replay;

@@ -22,7 +22,7 @@ use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
 use tonic::Status;
 
-use super::recordings::read_status;
+use super::read_status::read_status;
 use super::stream::{Item, Wrap};
 use crate::recording::{Recorded, Recording, ResimError, Resimulation};
 
