@@ -463,3 +463,6 @@ impl Drop for Session {
         self.stop.store(true, Ordering::Relaxed);
     }
 }
+
+#[cfg(test)]
+mod tests;
