@@ -9,45 +9,9 @@ use std::time::Duration;
 use tokio::sync::watch;
 use tonic::Status;
 
-use crate::engine::scene::Scene;
+use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
 use crate::session::{Session, SessionConfig};
-
-/// The embedded default scene and the `.toml` files of a directory, by name.
-#[derive(Debug, Default)]
-pub struct SceneCatalog {
-    pub scenes: BTreeMap<String, Scene>,
-}
-
-impl SceneCatalog {
-    /// The default scene, and every `*.toml` in `dir` (each must parse; a broken file
-    /// is an error naming it, so a typo does not silently hide a scene).
-    pub fn load(dir: Option<&Path>) -> Result<Self, String> {
-        let mut scenes = BTreeMap::new();
-        let default = Scene::default_scene();
-        scenes.insert(default.name.clone(), default);
-        if let Some(dir) = dir {
-            let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-            let mut files: Vec<PathBuf> = entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-                .collect();
-            files.sort();
-            for f in files {
-                let scene = Scene::load(&f).map_err(|e| e.to_string())?;
-                if scenes.contains_key(&scene.name) {
-                    return Err(format!(
-                        "{}: a scene named `{}` is already loaded",
-                        f.display(),
-                        scene.name
-                    ));
-                }
-                scenes.insert(scene.name.clone(), scene);
-            }
-        }
-        Ok(SceneCatalog { scenes })
-    }
-}
 
 /// Every session of the server.
 pub struct Registry {
