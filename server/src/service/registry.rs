@@ -11,7 +11,7 @@ use tonic::Status;
 
 use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
-use crate::session::{Session, SessionConfig};
+use crate::session::{Session, SessionConfig, SessionError};
 
 /// Every session of the server.
 pub struct Registry {
@@ -98,8 +98,15 @@ impl Registry {
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
         let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))
-            .map_err(|e| {
-                Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+            .map_err(|e| match e {
+                SessionError::Scene(e) => {
+                    Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+                }
+                // Out of threads or memory: the server, not the scene, is at fault,
+                // and a later try may succeed.
+                SessionError::Spawn { .. } => {
+                    Status::unavailable(format!("cannot start a session of scene `{name}`: {e}"))
+                }
             })?;
         if let Some(recorder) = session.recorder_weak() {
             let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());

@@ -16,6 +16,7 @@
 //! never waits, and what the recorder leaves out or fails on is published as an
 //! event. The mechanics thread finishes the file when it stops.
 
+mod error;
 pub mod input;
 mod mechanics;
 
@@ -29,10 +30,11 @@ use std::time::{Duration, SystemTime};
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use crate::engine::scene::{Scene, SceneError};
+use crate::engine::scene::Scene;
 use crate::frame::Frame;
 use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
+pub use error::SessionError;
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
 /// How a session runs.
@@ -99,7 +101,7 @@ impl Session {
         id: String,
         scene: Scene,
         config: &SessionConfig,
-    ) -> Result<Arc<Self>, SceneError> {
+    ) -> Result<Arc<Self>, SessionError> {
         let sim = scene.build()?;
         let description = description(&scene, &sim);
         let (lo, hi) = sim.mesh.bounding_box();
@@ -131,11 +133,11 @@ impl Session {
                     start: created_at,
                     description: description.clone(),
                 };
-                let recorder = Recorder::start(path, header).map_err(|e| SceneError::Invalid {
-                    scene: scene.source.clone(),
-                    path: "recording".into(),
-                    message: format!("cannot start the recorder thread: {e}"),
-                })?;
+                let recorder =
+                    Recorder::start(path, header).map_err(|source| SessionError::Spawn {
+                        thread: "recorder",
+                        source,
+                    })?;
                 Some(Arc::new(recorder))
             }
             None => None,
@@ -171,10 +173,9 @@ impl Session {
             session: weak,
             recorder,
         })
-        .map_err(|e| SceneError::Invalid {
-            scene: session.scene.source.clone(),
-            path: "mechanics".into(),
-            message: format!("cannot start the mechanics thread: {e}"),
+        .map_err(|source| SessionError::Spawn {
+            thread: "mechanics",
+            source,
         })?;
         *session.thread.lock().unwrap_or_else(|e| e.into_inner()) = Some(thread);
         Ok(session)
