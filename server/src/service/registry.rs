@@ -11,7 +11,7 @@ use tonic::Status;
 
 use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
-use crate::session::{Session, SessionConfig, SessionError};
+use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// Every session of the server.
 pub struct Registry {
@@ -24,8 +24,8 @@ pub struct Registry {
     pub recordings: Option<PathBuf>,
     /// The recorders of this server's sessions, until their files are finished.
     recorders: Mutex<Vec<Weak<Recorder>>>,
-    /// `Some(reason)` once the server is shutting down.
-    shutdown: watch::Sender<Option<String>>,
+    /// Whether the server is shutting down, and why.
+    shutdown: Closing,
 }
 
 impl Registry {
@@ -41,7 +41,7 @@ impl Registry {
             idle_timeout,
             recordings,
             recorders: Mutex::new(Vec::new()),
-            shutdown: watch::channel(None).0,
+            shutdown: Closing::new(),
         }
     }
 
@@ -68,7 +68,7 @@ impl Registry {
 
     /// Resolves to the reason once the server is shutting down.
     pub fn shutting_down(&self) -> watch::Receiver<Option<String>> {
-        self.shutdown.subscribe()
+        self.shutdown.watch()
     }
 
     fn map(&self) -> MutexGuard<'_, BTreeMap<String, Arc<Session>>> {
@@ -153,7 +153,7 @@ impl Registry {
     /// Closes every session (shutdown) and waits for their mechanics threads;
     /// streams not tied to a session (replays) end too.
     pub fn close_all(&self, reason: &str) {
-        self.shutdown.send_replace(Some(reason.to_string()));
+        self.shutdown.close(reason);
         let all: Vec<_> = std::mem::take(&mut *self.map()).into_values().collect();
         for s in &all {
             s.close(reason);

@@ -25,6 +25,7 @@ use tonic::Status;
 use super::read_status::read_status;
 use super::stream::{Item, Wrap};
 use crate::recording::{Recorded, Recording, ResimError, Resimulation};
+use crate::session::closing::closed;
 
 /// A message to send at `at_s` of simulated time after the replay's start offset.
 pub struct Timed {
@@ -197,19 +198,6 @@ pub fn read_resimulated(
     gate.flush(&out);
 }
 
-/// Resolves with the reason once the server shuts down.
-async fn shut_down(shutdown: &mut watch::Receiver<Option<String>>) -> String {
-    let reason = match shutdown.wait_for(Option::is_some).await {
-        Ok(reason) => reason.clone(),
-        Err(_) => None,
-    };
-    match reason {
-        Some(reason) => reason,
-        // The registry is gone: nothing will shut this stream down.
-        None => std::future::pending().await,
-    }
-}
-
 /// Sends `feed`'s messages at their times divided by `speed` after now, until the
 /// feed ends (the stream then ends OK), the client goes, or the server shuts down
 /// (the stream then ends with `UNAVAILABLE`, as live streams do).
@@ -224,7 +212,7 @@ pub async fn pace(
     loop {
         let next = tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }
@@ -250,7 +238,7 @@ pub async fn pace(
         };
         tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }
@@ -259,7 +247,7 @@ pub async fn pace(
         }
         tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }

@@ -16,6 +16,7 @@
 //! never waits, and what the recorder leaves out or fails on is published as an
 //! event. The mechanics thread finishes the file when it stops.
 
+pub mod closing;
 mod error;
 pub mod input;
 mod mechanics;
@@ -34,6 +35,7 @@ use crate::engine::scene::Scene;
 use crate::frame::Frame;
 use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
+pub use closing::Closing;
 pub use error::SessionError;
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
@@ -85,8 +87,7 @@ pub struct Session {
     slots: Vec<Mutex<triple_buffer::Input<Option<PoseIn>>>>,
     frames: watch::Receiver<Arc<Frame>>,
     events: broadcast::Sender<v1::Event>,
-    /// `Some(reason)` once the session is closing.
-    closing: watch::Sender<Option<String>>,
+    closing: Closing,
     stop: Arc<AtomicBool>,
     thread: Mutex<Option<JoinHandle<()>>>,
     recorder: Option<Arc<Recorder>>,
@@ -115,7 +116,6 @@ impl Session {
             (0..n).map(|_| triple_buffer::triple_buffer(&None)).unzip();
         let (frame_tx, frames) = watch::channel(Arc::new(Frame::default()));
         let (events, _) = broadcast::channel(EVENT_BACKLOG);
-        let (closing, _) = watch::channel(None);
         let stats = Arc::new(SessionStats::default());
         let stop = Arc::new(AtomicBool::new(false));
         let created_at = SystemTime::now();
@@ -156,7 +156,7 @@ impl Session {
             slots: inputs.into_iter().map(Mutex::new).collect(),
             frames,
             events: events.clone(),
-            closing,
+            closing: Closing::new(),
             stop: stop.clone(),
             thread: Mutex::new(None),
             recorder: recorder.clone(),
@@ -309,24 +309,16 @@ impl Session {
 
     /// Resolves to the reason once the session is closing.
     pub fn closing(&self) -> watch::Receiver<Option<String>> {
-        self.closing.subscribe()
+        self.closing.watch()
     }
 
     pub fn is_closed(&self) -> bool {
-        self.closing.borrow().is_some()
+        self.closing.is_closed()
     }
 
     /// Closes the session: streams end, the mechanics thread stops. Idempotent.
     pub fn close(&self, reason: &str) {
-        let first = self.closing.send_if_modified(|c| {
-            if c.is_none() {
-                *c = Some(reason.to_string());
-                true
-            } else {
-                false
-            }
-        });
-        if first {
+        if self.closing.close(reason) {
             self.publish(
                 v1::EventKind::SessionClosing,
                 None,
