@@ -9,45 +9,9 @@ use std::time::Duration;
 use tokio::sync::watch;
 use tonic::Status;
 
-use crate::engine::scene::Scene;
+use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
-use crate::session::{Session, SessionConfig};
-
-/// The embedded default scene and the `.toml` files of a directory, by name.
-#[derive(Debug, Default)]
-pub struct SceneCatalog {
-    pub scenes: BTreeMap<String, Scene>,
-}
-
-impl SceneCatalog {
-    /// The default scene, and every `*.toml` in `dir` (each must parse; a broken file
-    /// is an error naming it, so a typo does not silently hide a scene).
-    pub fn load(dir: Option<&Path>) -> Result<Self, String> {
-        let mut scenes = BTreeMap::new();
-        let default = Scene::default_scene();
-        scenes.insert(default.name.clone(), default);
-        if let Some(dir) = dir {
-            let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-            let mut files: Vec<PathBuf> = entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-                .collect();
-            files.sort();
-            for f in files {
-                let scene = Scene::load(&f).map_err(|e| e.to_string())?;
-                if scenes.contains_key(&scene.name) {
-                    return Err(format!(
-                        "{}: a scene named `{}` is already loaded",
-                        f.display(),
-                        scene.name
-                    ));
-                }
-                scenes.insert(scene.name.clone(), scene);
-            }
-        }
-        Ok(SceneCatalog { scenes })
-    }
-}
+use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// Every session of the server.
 pub struct Registry {
@@ -60,8 +24,8 @@ pub struct Registry {
     pub recordings: Option<PathBuf>,
     /// The recorders of this server's sessions, until their files are finished.
     recorders: Mutex<Vec<Weak<Recorder>>>,
-    /// `Some(reason)` once the server is shutting down.
-    shutdown: watch::Sender<Option<String>>,
+    /// Whether the server is shutting down, and why.
+    shutdown: Closing,
 }
 
 impl Registry {
@@ -77,7 +41,7 @@ impl Registry {
             idle_timeout,
             recordings,
             recorders: Mutex::new(Vec::new()),
-            shutdown: watch::channel(None).0,
+            shutdown: Closing::new(),
         }
     }
 
@@ -104,7 +68,7 @@ impl Registry {
 
     /// Resolves to the reason once the server is shutting down.
     pub fn shutting_down(&self) -> watch::Receiver<Option<String>> {
-        self.shutdown.subscribe()
+        self.shutdown.watch()
     }
 
     fn map(&self) -> MutexGuard<'_, BTreeMap<String, Arc<Session>>> {
@@ -134,8 +98,15 @@ impl Registry {
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
         let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))
-            .map_err(|e| {
-                Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+            .map_err(|e| match e {
+                SessionError::Scene(e) => {
+                    Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+                }
+                // Out of threads or memory: the server, not the scene, is at fault,
+                // and a later try may succeed.
+                SessionError::Spawn { .. } => {
+                    Status::unavailable(format!("cannot start a session of scene `{name}`: {e}"))
+                }
             })?;
         if let Some(recorder) = session.recorder_weak() {
             let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
@@ -182,7 +153,7 @@ impl Registry {
     /// Closes every session (shutdown) and waits for their mechanics threads;
     /// streams not tied to a session (replays) end too.
     pub fn close_all(&self, reason: &str) {
-        self.shutdown.send_replace(Some(reason.to_string()));
+        self.shutdown.close(reason);
         let all: Vec<_> = std::mem::take(&mut *self.map()).into_values().collect();
         for s in &all {
             s.close(reason);
