@@ -4,7 +4,6 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use laparo_client::haptics::{
     ForceLoop, ForceLoopConfig, HandDevice, HandParams, HapticDevice, ScriptedDevice,
@@ -14,15 +13,18 @@ use nalgebra::{Point3, Unit, Vector3};
 
 struct Counting;
 
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
+// Both the flag and the count are per thread: the test harness runs tests on
+// several threads at once, and one test's allocations must not count in another's.
 thread_local! {
     static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
 }
 
 fn note() {
-    if COUNTING.with(Cell::get) {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    // `try_with`: a thread's locals may already be gone while it frees its last
+    // allocations at exit.
+    if COUNTING.try_with(Cell::get).unwrap_or(false) {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
     }
 }
 
@@ -51,11 +53,11 @@ static GLOBAL: Counting = Counting;
 
 /// Allocations made on this thread while running `f`.
 fn allocations_in(f: impl FnOnce()) -> u64 {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = ALLOCATIONS.with(Cell::get);
     COUNTING.with(|c| c.set(true));
     f();
     COUNTING.with(|c| c.set(false));
-    ALLOCATIONS.load(Ordering::Relaxed) - before
+    ALLOCATIONS.with(Cell::get) - before
 }
 
 const TROCAR: Point3<f64> = Point3::new(0.01, 0.0, 0.12);
