@@ -41,6 +41,29 @@ fn wait_bounded(child: &mut Child) -> ExitStatus {
     }
 }
 
+/// Runs `command` with its output piped, reads the first line of it and closes the
+/// pipe; returns that line, how the client ended and what it wrote on stderr.
+fn read_one_line_then_close(command: &mut Command) -> (String, ExitStatus, String) {
+    let mut client = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("laparo runs");
+    let mut stdout = BufReader::new(client.stdout.take().unwrap());
+    let mut first = String::new();
+    stdout.read_line(&mut first).unwrap();
+    drop(stdout);
+    let status = wait_bounded(&mut client);
+    let mut stderr = String::new();
+    client
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    (first, status, stderr)
+}
+
 /// A recording made by `laparo demo` in `dir`.
 fn record(dir: &Path) -> PathBuf {
     let out = laparo()
@@ -97,20 +120,8 @@ fn a_listing_piped_into_a_reader_that_stops_after_one_line_ends_quietly() {
     // Read one line, then the pipe closes.
     let mut client = laparo();
     list(&mut client);
-    let mut client = client.spawn().expect("laparo runs");
-    let mut stdout = BufReader::new(client.stdout.take().unwrap());
-    let mut first = String::new();
-    stdout.read_line(&mut first).unwrap();
+    let (first, status, stderr) = read_one_line_then_close(&mut client);
     assert!(first.starts_with("| file |"), "{first}");
-    drop(stdout);
-    let status = wait_bounded(&mut client);
-    let mut stderr = String::new();
-    client
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut stderr)
-        .unwrap();
     assert!(status.success(), "{status}: {stderr}");
     assert_eq!(stderr, "");
     std::fs::remove_dir_all(&root).unwrap();
@@ -123,26 +134,12 @@ fn a_listing_piped_into_a_reader_that_stops_after_one_line_ends_quietly() {
 fn a_demo_whose_reader_stops_after_one_line_still_finishes_its_recording() {
     let root = std::env::temp_dir().join(format!("laparo-closed-demo-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&root);
-    let mut client = laparo()
-        .args(["demo", "--seconds", "1", "--recordings"])
-        .arg(&root)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("laparo runs");
-    let mut stdout = BufReader::new(client.stdout.take().unwrap());
-    let mut first = String::new();
-    stdout.read_line(&mut first).unwrap();
-    assert!(first.starts_with("demo:"), "{first}");
-    drop(stdout);
-    let status = wait_bounded(&mut client);
-    let mut stderr = String::new();
+    let mut client = laparo();
     client
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut stderr)
-        .unwrap();
+        .args(["demo", "--seconds", "1", "--recordings"])
+        .arg(&root);
+    let (first, status, stderr) = read_one_line_then_close(&mut client);
+    assert!(first.starts_with("demo:"), "{first}");
     assert!(status.success(), "{status}: {stderr}");
     let file = std::fs::read_dir(&root)
         .expect("the demo made its recordings directory")
