@@ -20,9 +20,10 @@ use std::time::{Duration, Instant};
 use tokio::task::JoinSet;
 use tokio::time::MissedTickBehavior;
 
-use crate::connect::{ConnectConfig, Connection, connect};
+use crate::connect::{AuthChannel, ConnectConfig, Connection, connect};
 use crate::gestures::default_press_for;
 use crate::latency::{LatencyHistogram, LatencySummary};
+use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::{
     CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Role, SessionInfo,
 };
@@ -217,9 +218,13 @@ pub fn assign_instruments(session: &SessionInfo, stations: usize) -> Vec<Option<
 
 /// Runs the load test; see the [module documentation](self). `on_progress` is called
 /// every second with the running totals.
+///
+/// Steps: open the session (the named one, or a new one), start one task a station,
+/// gather their results while reporting progress, add them up, then read the
+/// session's own figures and close the session if this run created it.
 pub async fn run_load(
     config: LoadConfig,
-    mut on_progress: impl FnMut(LoadProgress),
+    on_progress: impl FnMut(LoadProgress),
 ) -> Result<LoadSummary, StationError> {
     if !(config.pose_rate_hz.is_finite() && config.pose_rate_hz > 0.0) {
         return Err(StationError::Rate {
@@ -230,74 +235,15 @@ pub async fn run_load(
     }
     let control = connect(&config.connect).await?;
     let mut sessions = control.sessions();
-    let (session, created) = match &config.session {
-        Some(id) => (
-            sessions
-                .get_session(GetSessionRequest {
-                    session_id: id.clone(),
-                })
-                .await?
-                .into_inner(),
-            false,
-        ),
-        None => (
-            sessions
-                .create_session(CreateSessionRequest {
-                    scene: config.scene.clone().unwrap_or_default(),
-                    idle_timeout_s: None,
-                    record: config.record,
-                })
-                .await?
-                .into_inner(),
-            true,
-        ),
-    };
+    let (session, created) = open_session(&mut sessions, &config).await?;
     let session_id = session.session_id.clone();
     let assignment = assign_instruments(&session, config.stations.max(1));
     let posing_stations = assignment.iter().filter(|a| a.is_some()).count();
 
     let counters = Arc::new(Counters::default());
-    let mut tasks = JoinSet::new();
-    for (index, instrument) in assignment.into_iter().enumerate() {
-        let connect_config = config.connect.clone();
-        let open = JoinRequest {
-            session_id: session_id.clone(),
-            role: Role::Trainee as i32,
-            instruments: instrument.into_iter().collect(),
-            surface_frame_rate_hz: config.surface_frame_rate_hz,
-            client_name: format!("laparo load station {index}"),
-        };
-        let counters = Arc::clone(&counters);
-        let (rate, duration) = (config.pose_rate_hz, config.duration);
-        tasks.spawn(async move {
-            let result = async {
-                let connection = connect(&connect_config).await?;
-                load_station(&connection, open, rate, duration, &counters).await
-            }
-            .await;
-            (index, result)
-        });
-    }
+    let tasks = start_stations(&config, &session_id, assignment, &counters);
+    let results = gather(tasks, &counters, on_progress).await;
 
-    let mut results: Vec<(usize, Result<StationLoad, StationError>)> = Vec::new();
-    let mut progress_tick = tokio::time::interval_at(
-        tokio::time::Instant::now() + Duration::from_secs(1),
-        Duration::from_secs(1),
-    );
-    progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    loop {
-        tokio::select! {
-            joined = tasks.join_next() => match joined {
-                Some(Ok(result)) => results.push(result),
-                Some(Err(e)) => results.push((usize::MAX, Err(StationError::Protocol(format!("station task failed: {e}"))))),
-                None => break,
-            },
-            _ = progress_tick.tick() => on_progress(counters.snapshot()),
-        }
-    }
-    results.sort_by_key(|(i, _)| *i);
-
-    let mut latency = LatencyHistogram::new();
     let mut summary = LoadSummary {
         session_id: session_id.clone(),
         created_session: created,
@@ -307,25 +253,7 @@ pub async fn run_load(
         seconds: config.duration.as_secs_f64(),
         ..LoadSummary::default()
     };
-    for (index, result) in results {
-        match result {
-            Ok(station) => {
-                summary.frames_per_station.push(station.frames);
-                summary.states += station.states;
-                summary.poses_sent += station.poses_sent;
-                summary.poses_dropped += station.poses_dropped;
-                for (code, n) in station.errors {
-                    *summary.errors.entry(code).or_default() += n;
-                }
-                if station.posing {
-                    latency.merge(&station.latency);
-                }
-            }
-            Err(e) => summary.failures.push(format!("station {index}: {e}")),
-        }
-    }
-    summary.latency = latency.summary();
-
+    add_up(&mut summary, results);
     let info = sessions
         .get_session(GetSessionRequest {
             session_id: session_id.clone(),
@@ -350,6 +278,122 @@ pub async fn run_load(
             .await?;
     }
     Ok(summary)
+}
+
+/// The session the run loads: the one `config.session` names, or a new one of
+/// `config.scene` (then `true`: the run closes it at the end).
+async fn open_session(
+    sessions: &mut SessionsClient<AuthChannel>,
+    config: &LoadConfig,
+) -> Result<(SessionInfo, bool), StationError> {
+    Ok(match &config.session {
+        Some(id) => (
+            sessions
+                .get_session(GetSessionRequest {
+                    session_id: id.clone(),
+                })
+                .await?
+                .into_inner(),
+            false,
+        ),
+        None => (
+            sessions
+                .create_session(CreateSessionRequest {
+                    scene: config.scene.clone().unwrap_or_default(),
+                    idle_timeout_s: None,
+                    record: config.record,
+                })
+                .await?
+                .into_inner(),
+            true,
+        ),
+    })
+}
+
+/// A station's result, with its index in the run.
+type StationResult = (usize, Result<StationLoad, StationError>);
+
+/// One task a station, each on its own connection, claiming the instrument
+/// `assignment` gives it (or none).
+fn start_stations(
+    config: &LoadConfig,
+    session_id: &str,
+    assignment: Vec<Option<String>>,
+    counters: &Arc<Counters>,
+) -> JoinSet<StationResult> {
+    let mut tasks = JoinSet::new();
+    for (index, instrument) in assignment.into_iter().enumerate() {
+        let connect_config = config.connect.clone();
+        let open = JoinRequest {
+            session_id: session_id.to_string(),
+            role: Role::Trainee as i32,
+            instruments: instrument.into_iter().collect(),
+            surface_frame_rate_hz: config.surface_frame_rate_hz,
+            client_name: format!("laparo load station {index}"),
+        };
+        let counters = Arc::clone(counters);
+        let (rate, duration) = (config.pose_rate_hz, config.duration);
+        tasks.spawn(async move {
+            let result = async {
+                let connection = connect(&connect_config).await?;
+                load_station(&connection, open, rate, duration, &counters).await
+            }
+            .await;
+            (index, result)
+        });
+    }
+    tasks
+}
+
+/// Waits for every station, calling `on_progress` every second with the running
+/// totals; the results in station order.
+async fn gather(
+    mut tasks: JoinSet<StationResult>,
+    counters: &Counters,
+    mut on_progress: impl FnMut(LoadProgress),
+) -> Vec<StationResult> {
+    let mut results = Vec::new();
+    let mut progress_tick = tokio::time::interval_at(
+        tokio::time::Instant::now() + Duration::from_secs(1),
+        Duration::from_secs(1),
+    );
+    progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    loop {
+        tokio::select! {
+            joined = tasks.join_next() => match joined {
+                Some(Ok(result)) => results.push(result),
+                Some(Err(e)) => results.push((usize::MAX, Err(StationError::Protocol(format!("station task failed: {e}"))))),
+                None => break,
+            },
+            _ = progress_tick.tick() => on_progress(counters.snapshot()),
+        }
+    }
+    results.sort_by_key(|(i, _)| *i);
+    results
+}
+
+/// Adds the stations' counts to `summary`: frames per station, states, poses,
+/// errors by code, the latency of the posing stations, and each failure.
+fn add_up(summary: &mut LoadSummary, results: Vec<StationResult>) {
+    let mut latency = LatencyHistogram::new();
+    for (index, result) in results {
+        match result {
+            Ok(station) => {
+                summary.frames_per_station.push(station.frames);
+                summary.states += station.states;
+                summary.poses_sent += station.poses_sent;
+                summary.poses_dropped += station.poses_dropped;
+                for (code, n) in station.errors {
+                    *summary.errors.entry(code).or_default() += n;
+                }
+                if station.posing {
+                    latency.merge(&station.latency);
+                }
+            }
+            Err(e) => summary.failures.push(format!("station {index}: {e}")),
+        }
+    }
+    summary.latency = latency.summary();
 }
 
 /// One station of a load run: join, pose (if granted an instrument) and count for
