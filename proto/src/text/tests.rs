@@ -6,7 +6,13 @@ use super::{needs_escape, printable};
 
 #[test]
 fn plain_text_of_any_script_is_borrowed_as_it_is() {
-    for s in ["", "liver-20k", "s1-default-1764000000.mcap", "Élève 学生 🫀", r"a\b"] {
+    for s in [
+        "",
+        "liver-20k",
+        "s1-default-1764000000.mcap",
+        "Élève 学生 🫀",
+        r"a\b",
+    ] {
         assert!(matches!(printable(s), Cow::Borrowed(b) if b == s), "{s:?}");
     }
 }
@@ -14,7 +20,10 @@ fn plain_text_of_any_script_is_borrowed_as_it_is() {
 #[test]
 fn terminal_controls_are_written_as_escapes() {
     let cases = [
-        ("\u{1b}[2J\u{1b}]0;owned\u{7}", r"\u{1b}[2J\u{1b}]0;owned\u{7}"),
+        (
+            "\u{1b}[2J\u{1b}]0;owned\u{7}",
+            r"\u{1b}[2J\u{1b}]0;owned\u{7}",
+        ),
         ("a\nb\tc\rd", r"a\nb\tc\rd"),
         ("csi\u{9b}31m", r"csi\u{9b}31m"),
         ("del\u{7f}", r"del\u{7f}"),
