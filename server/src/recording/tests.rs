@@ -977,29 +977,3 @@ fn a_recording_decodes_with_nothing_but_the_schemas_in_it() {
     }
     assert_eq!(by_topic[TOPIC_SCENE].len(), 1);
 }
-
-#[test]
-fn a_finished_file_is_mapped_and_a_recovery_over_it_leaves_the_map_whole() {
-    let dir = temp();
-    let path = dir.path().join("mapped.mcap");
-    // 24 ticks in chunks of 5.
-    let (boundaries, bytes) = chunked(&path, 24, 5);
-    let rec = Recording::open(&path).unwrap();
-    assert!(rec.is_mapped());
-    let before = rec.surfaces().unwrap();
-    assert_eq!(before.len(), 24);
-    // Cut after the second chunk, it is read into memory: a file being written
-    // changes under a map.
-    let cut = dir.path().join("cut.mcap");
-    std::fs::write(&cut, &bytes[..boundaries[2].0 as usize]).unwrap();
-    let partial = Recording::open_unfinished(&cut).unwrap();
-    assert!(!partial.is_mapped() && !partial.is_complete());
-    // Recovering the cut copy over the mapped file renames a new file over it: the
-    // open recording still reads every tick as written.
-    recover(&cut, &path).unwrap();
-    assert_eq!(rec.surfaces().unwrap(), before);
-    // And the path now holds the shorter recovered recording, mapped in its turn.
-    let now = Recording::open(&path).unwrap();
-    assert!(now.is_mapped());
-    assert_eq!(now.surfaces().unwrap()[..], before[..10]);
-}

@@ -46,6 +46,9 @@ use crate::recording::{ReadError, Recording};
 
 pub struct RecordingsService {
     pub registry: Arc<Registry>,
+    /// What the recordings directory's files were found to hold, by name, size and
+    /// modification time; one listing reads at a time ([`list::Lister`]).
+    pub lister: Arc<list::Lister>,
 }
 
 /// Fastest replay, times real time: a few minutes of frames in seconds.
@@ -243,13 +246,16 @@ impl v1::recordings_server::Recordings for RecordingsService {
         caller(&request)?;
         let dir = self.dir()?;
         let registry = self.registry.clone();
+        let lister = self.lister.clone();
         let listed = blocking(move || {
-            list::list(&dir, |p| registry.is_recording(p)).map_err(|e| {
-                Status::failed_precondition(format!(
-                    "cannot read the recordings directory {}: {e}",
-                    dir.display()
-                ))
-            })
+            lister
+                .list(&dir, |p| registry.is_recording(p))
+                .map_err(|e| {
+                    Status::failed_precondition(format!(
+                        "cannot read the recordings directory {}: {e}",
+                        dir.display()
+                    ))
+                })
         })
         .await?;
         let mut recordings = Vec::new();
