@@ -287,3 +287,173 @@ async fn a_large_unfinished_file_lists_from_its_first_and_last_chunks_once_howev
     server.shutdown().await.unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Whether `text` holds a character a terminal would act on.
+fn has_control(text: &str) -> bool {
+    text.chars().any(laparo_proto::text::needs_escape)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escapes() {
+    // A scene whose name is terminal escapes: it reaches the recording's metadata.
+    let scenes = fresh_dir("escape-scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let evil = "evil\u{1b}]0;owned\u{7}\u{1b}[2J";
+    let toml = include_str!("../../server/scenes/default.toml").replace(
+        "name = \"default\"",
+        "name = \"evil\\u001b]0;owned\\u0007\\u001b[2J\"",
+    );
+    std::fs::write(scenes.join("evil.toml"), toml).unwrap();
+    let dir = fresh_dir("escape");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        scene_dir: Some(scenes.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: evil.into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let recorded = info.recording_file.clone().unwrap();
+    assert!(!has_control(&recorded));
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: info.session_id.clone(),
+            reason: "recorded".into(),
+        })
+        .await
+        .unwrap();
+
+    // Beside it: a link to a recording outside the directory, links to a device
+    // and to a FIFO, a FIFO, a directory, and a file named with escapes.
+    let outside = fresh_dir("escape-outside");
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::copy(dir.join(&recorded), outside.join("secret.mcap")).unwrap();
+    let link = |to: &Path, name: &str| std::os::unix::fs::symlink(to, dir.join(name)).unwrap();
+    link(&outside.join("secret.mcap"), "link.mcap");
+    link(Path::new("/dev/zero"), "zero.mcap");
+    let fifo = dir.join("fifo.mcap");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    link(&fifo, "to-fifo.mcap");
+    std::fs::create_dir(dir.join("dir.mcap")).unwrap();
+    let escaped_name = "\u{1b}[2J.mcap";
+    std::fs::copy(dir.join(&recorded), dir.join(escaped_name)).unwrap();
+
+    let listed = tokio::time::timeout(
+        WAIT,
+        recordings(&ch).list_recordings(v1::ListRecordingsRequest {}),
+    )
+    .await
+    .expect("listing does not hang on a FIFO or a device")
+    .unwrap()
+    .into_inner();
+    let files: Vec<&str> = listed.recordings.iter().map(|r| r.file.as_str()).collect();
+    assert_eq!(files, [recorded.as_str()]);
+    let r = &listed.recordings[0];
+    assert_eq!(r.scene, laparo_proto::text::printable(evil));
+    assert!(!has_control(&r.scene) && !has_control(&r.session_id));
+
+    // Replays: a link or a device is no recording of this directory; an escaped
+    // name is refused, and echoed escaped.
+    let replay = |file: &str| {
+        let mut client = recordings(&ch);
+        let request = v1::ReplayRequest {
+            file: file.into(),
+            speed: Some(100.0),
+            start_offset_s: None,
+            mode: v1::ReplayMode::Recorded as i32,
+        };
+        async move {
+            tokio::time::timeout(WAIT, client.replay(request))
+                .await
+                .unwrap()
+        }
+    };
+    for file in [
+        "link.mcap",
+        "zero.mcap",
+        "fifo.mcap",
+        "to-fifo.mcap",
+        "dir.mcap",
+    ] {
+        let status = replay(file).await.expect_err(file);
+        assert_eq!(status.code(), Code::NotFound, "{file}: {status:?}");
+    }
+    let status = replay(escaped_name).await.unwrap_err();
+    assert_eq!(status.code(), Code::InvalidArgument);
+    assert!(!has_control(status.message()), "{:?}", status.message());
+    assert!(
+        status.message().contains("\\u{1b}[2J.mcap"),
+        "{:?}",
+        status.message()
+    );
+    assert!(replay(&recorded).await.is_ok());
+    server.shutdown().await.unwrap();
+    for d in [&dir, &scenes, &outside] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
+    let (server, ch, dir) = recording_server("gone").await;
+    // The directory goes away after the server started: the file cannot be made.
+    std::fs::remove_dir_all(&dir).unwrap();
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let get = v1::GetSessionRequest {
+        session_id: info.session_id.clone(),
+    };
+    let error = tokio::time::timeout(WAIT, async {
+        loop {
+            let now = sessions
+                .get_session(get.clone())
+                .await
+                .unwrap()
+                .into_inner();
+            if let Some(e) = now.recording_error {
+                return e;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect("the recorder reports its failure");
+    assert!(error.contains(&info.session_id), "{error}");
+    assert!(error.contains(".mcap"), "{error}");
+    assert!(!error.contains(&dir.display().to_string()), "{error}");
+    assert!(!error.contains("/tmp"), "{error}");
+    // Listing a directory that is gone says so, without its path.
+    let status = recordings(&ch)
+        .list_recordings(v1::ListRecordingsRequest {})
+        .await
+        .unwrap_err();
+    assert_eq!(status.code(), Code::FailedPrecondition);
+    assert!(
+        !status.message().contains(&dir.display().to_string()),
+        "{status:?}"
+    );
+    server.shutdown().await.unwrap();
+}

@@ -325,7 +325,13 @@ pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
 /// every [`FLUSH_INTERVAL`], finish on [`Msg::Finish`] or when the sender is gone.
 fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared) {
     let fail = |what: &str, e: &dyn std::error::Error| {
-        let message = format!("{what} {}: {}", path.display(), with_causes(e));
+        // The file's name alone: the message goes to clients, which know no
+        // server paths.
+        let name = path
+            .file_name()
+            .unwrap_or(path.as_os_str())
+            .to_string_lossy();
+        let message = format!("{what} {name}: {}", with_causes(e));
         tracing::error!(session = %header.session_id, "recorder: {message}");
         shared.stats.errors.fetch_add(1, Ordering::Relaxed);
         *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(message);

@@ -6,6 +6,11 @@
 //! are for. A recording still being written is a session going on: watching it is
 //! observing, which needs an instructor as `Observe` does.
 //!
+//! Only regular files directly in the recordings directory are served, never
+//! through a symbolic link; files are named relative to the directory in every
+//! status, and what comes from files or clients (names, metadata) is escaped
+//! ([`printable`]) in statuses and listings.
+//!
 //! `ListRecordings` gives the files [`crate::recording::list`] reads: finished
 //! recordings, and those a session of this server is still writing (`in_progress`,
 //! with what their complete chunks hold). A file that cannot be replayed — not
@@ -32,6 +37,7 @@ use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, UNIX_EPOCH};
 
+use laparo_proto::text::{needs_escape, printable};
 use laparo_proto::v1;
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
@@ -105,11 +111,15 @@ pub fn start_offset(asked: Option<f64>) -> Result<f64, Status> {
 }
 
 /// Checks that `name` is a bare `.mcap` file name: no directory part, no `..`, not
-/// absolute, so that it names a file of the recordings directory and nothing else.
+/// absolute, so that it names a file of the recordings directory and nothing else;
+/// and without control characters, which no recording the server writes has
+/// (its names are the session id and the scene name reduced to `[A-Za-z0-9_-]`)
+/// and a listing leaves out. The name is echoed escaped ([`printable`]).
 pub fn file_name(name: &str) -> Result<&str, Status> {
     let bad = |why: &str| {
         Err(Status::invalid_argument(format!(
-            "`{name}` is not a recording's file name: {why}"
+            "`{}` is not a recording's file name: {why}",
+            printable(name)
         )))
     };
     if name.is_empty() {
@@ -117,6 +127,9 @@ pub fn file_name(name: &str) -> Result<&str, Status> {
     }
     if name.contains(['/', '\\', '\0']) {
         return bad("give the bare file name, without a directory");
+    }
+    if name.chars().any(needs_escape) {
+        return bad("it holds control characters");
     }
     let mut components = Path::new(name).components();
     if !matches!(
@@ -131,18 +144,21 @@ pub fn file_name(name: &str) -> Result<&str, Status> {
     Ok(name)
 }
 
-/// The status a recording that cannot be read gets (the error names the file).
+/// The status a recording that cannot be read gets. The error names the file
+/// relative to the directory; what it quotes of the file (a version, a topic) is
+/// escaped ([`printable`]).
 pub fn read_status(name: &str, e: &ReadError) -> Status {
+    let text = || printable(&e.to_string()).into_owned();
     match e {
         ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-            Status::not_found(format!("no recording `{name}`"))
+            Status::not_found(format!("no recording `{}`", printable(name)))
         }
-        ReadError::Corrupt { .. } | ReadError::Decode { .. } => Status::data_loss(e.to_string()),
+        ReadError::Corrupt { .. } | ReadError::Decode { .. } => Status::data_loss(text()),
         ReadError::Io { .. }
         | ReadError::NotMcap { .. }
         | ReadError::Truncated { .. }
         | ReadError::NotARecording { .. }
-        | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(e.to_string()),
+        | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(text()),
     }
 }
 
@@ -166,11 +182,13 @@ async fn blocking<T: Send + 'static>(
         .map_err(|e| Status::internal(format!("reading recordings failed: {e}")))?
 }
 
+/// A listed recording as the contract states it; what comes from the file's
+/// metadata is escaped ([`printable`]).
 fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
     v1::RecordingInfo {
         file,
-        session_id: l.session_id.clone(),
-        scene: l.scene.clone(),
+        session_id: printable(&l.session_id).into_owned(),
+        scene: printable(&l.scene).into_owned(),
         start: Some((UNIX_EPOCH + Duration::from_nanos(l.start_unix_ns)).into()),
         duration_s: l.duration_s,
         size_bytes,
@@ -193,15 +211,18 @@ fn open_for_replay(
     offset: f64,
 ) -> Result<Opened, Status> {
     let path = dir.join(name);
-    match std::fs::metadata(&path) {
-        Ok(m) if m.is_file() => {}
+    // The entry itself, not what a link points to: only regular files of the
+    // directory are recordings (and they are opened without following a link).
+    match std::fs::symlink_metadata(&path) {
+        Ok(m) if m.file_type().is_file() => {}
         Ok(_) => return Err(Status::not_found(format!("no recording `{name}`"))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(Status::not_found(format!("no recording `{name}`")));
         }
         Err(e) => {
             return Err(Status::failed_precondition(format!(
-                "cannot read recording `{name}`: {e}"
+                "cannot read recording `{name}`: {}",
+                printable(&e.to_string())
             )));
         }
     }
@@ -251,15 +272,21 @@ impl v1::recordings_server::Recordings for RecordingsService {
             lister
                 .list(&dir, |p| registry.is_recording(p))
                 .map_err(|e| {
+                    tracing::warn!(dir = %dir.display(), "cannot read the recordings directory: {e}");
+                    // Not the directory's path: clients know no server paths.
                     Status::failed_precondition(format!(
-                        "cannot read the recordings directory {}: {e}",
-                        dir.display()
+                        "cannot read the recordings directory: {e}"
                     ))
                 })
         })
         .await?;
         let mut recordings = Vec::new();
         for l in listed {
+            if l.file.chars().any(needs_escape) {
+                // Not a name the server writes, nor one `Replay` takes.
+                tracing::warn!(file = %printable(&l.file), "not listed: its name holds control characters");
+                continue;
+            }
             match &l.entry {
                 Ok(e) if e.state != FileState::Unfinished => {
                     recordings.push(info(l.file, l.size_bytes, e));
@@ -268,7 +295,9 @@ impl v1::recordings_server::Recordings for RecordingsService {
                     file = %l.file,
                     "not listed: it ends without its summary (cut short by a stopped server)"
                 ),
-                Err(e) => tracing::warn!(file = %l.file, "not listed: {e}"),
+                Err(e) => {
+                    tracing::warn!(file = %l.file, "not listed: {}", printable(&e.to_string()))
+                }
             }
         }
         Ok(Response::new(v1::ListRecordingsResponse { recordings }))
