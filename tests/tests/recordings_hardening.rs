@@ -274,6 +274,49 @@ async fn a_large_unfinished_file_lists_from_its_first_and_last_chunks_once_howev
         assert_eq!(d.to_bits(), duration.to_bits());
         assert_eq!(state, FileState::Unfinished);
     }
+    // Through the server: six listings at once, each with the finished recording
+    // and the large unfinished file, with its state and real duration.
+    let calls: Vec<_> = (0..6)
+        .map(|_| {
+            let mut client = recordings(&ch);
+            tokio::spawn(async move {
+                client
+                    .list_recordings(v1::ListRecordingsRequest {})
+                    .await
+                    .map(|r| r.into_inner().recordings)
+            })
+        })
+        .collect();
+    let finished_name = path.file_name().unwrap().to_str().unwrap();
+    for call in calls {
+        let listed = tokio::time::timeout(WAIT, call)
+            .await
+            .expect("listing ends")
+            .unwrap()
+            .unwrap();
+        assert_eq!(listed.len(), 2, "{listed:?}");
+        let big = listed.iter().find(|r| r.file == "big.mcap").unwrap();
+        assert_eq!(big.state, v1::RecordingState::Unfinished as i32);
+        assert!(!big.in_progress);
+        assert_eq!(big.size_bytes, size);
+        assert_eq!(big.duration_s.to_bits(), duration.to_bits());
+        let done = listed.iter().find(|r| r.file == finished_name).unwrap();
+        assert_eq!(done.state, v1::RecordingState::Complete as i32);
+        assert_eq!(done.duration_s.to_bits(), duration.to_bits());
+    }
+    // An unfinished file is listed but not replayed until recovered.
+    let status = recordings(&ch)
+        .replay(v1::ReplayRequest {
+            file: "big.mcap".into(),
+            speed: None,
+            start_offset_s: None,
+            mode: 0,
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(status.code(), Code::FailedPrecondition);
+    assert!(status.message().contains("recover"), "{status:?}");
+
     // A change to the file is read again.
     std::fs::OpenOptions::new()
         .append(true)

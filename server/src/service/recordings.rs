@@ -11,12 +11,14 @@
 //! status, and what comes from files or clients (names, metadata) is escaped
 //! ([`printable`]) in statuses and listings.
 //!
-//! `ListRecordings` gives the files [`crate::recording::list`] reads: finished
-//! recordings, and those a session of this server is still writing (`in_progress`,
-//! with what their complete chunks hold). A file that cannot be replayed — not
-//! MCAP, corrupt where the listing looks, of another format version, or cut short by
-//! a stopped server — is left out (and logged): a listing has no place to say why,
-//! `Replay` of it says it, and `laparo recordings list --dir` shows it. The listing
+//! `ListRecordings` gives the files [`crate::recording::list`] reads, each with
+//! its state: finished, still written by a session of this server (with what its
+//! complete chunks hold), or unfinished — cut short by a stopped server, listed
+//! with what its complete chunks hold so that a crash does not hide recoverable
+//! sessions. A file that cannot be read as a recording — not MCAP, corrupt where
+//! the listing looks, of another format version — is left out (and logged): a
+//! listing has no place to say why, `Replay` of it says it, and
+//! `laparo recordings list --dir` shows it. The listing
 //! checks what it reads (header, summary, metadata, the last chunk with a frame); a
 //! chunk damaged elsewhere is found by the replay that reaches it.
 //!
@@ -193,6 +195,11 @@ fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
         duration_s: l.duration_s,
         size_bytes,
         in_progress: l.state == FileState::InProgress,
+        state: match l.state {
+            FileState::Complete => v1::RecordingState::Complete,
+            FileState::InProgress => v1::RecordingState::InProgress,
+            FileState::Unfinished => v1::RecordingState::Unfinished,
+        } as i32,
     }
 }
 
@@ -288,13 +295,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 continue;
             }
             match &l.entry {
-                Ok(e) if e.state != FileState::Unfinished => {
-                    recordings.push(info(l.file, l.size_bytes, e));
-                }
-                Ok(_) => tracing::warn!(
-                    file = %l.file,
-                    "not listed: it ends without its summary (cut short by a stopped server)"
-                ),
+                Ok(e) => recordings.push(info(l.file, l.size_bytes, e)),
                 Err(e) => {
                     tracing::warn!(file = %l.file, "not listed: {}", printable(&e.to_string()))
                 }
