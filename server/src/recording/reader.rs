@@ -108,8 +108,10 @@ pub const MAX_SUMMARY_BYTES: u64 = 64 << 20;
 /// Most top-level records walked in a file without a summary (its chunks, their
 /// message indexes, the metadata): a session closes a chunk at least every half
 /// second with about nine records, so this is over 100 hours; at 9 bytes read a
-/// record, the walk of the largest file reads at most 36 MiB of prefixes and holds
-/// 16 bytes a chunk. A file with more is refused (recovering it first lists it).
+/// record, the walk of the largest file reads at most 36 MiB of prefixes, and it
+/// keeps only the places of its first and newest chunks ([`MAX_HEAD_CHUNKS`],
+/// [`MAX_DURATION_CHUNKS`]). A file with more is refused (recovering it first lists
+/// it).
 pub const MAX_WALKED_RECORDS: u64 = 1 << 22;
 
 /// Most chunks decompressed, while walking a file without a summary, looking for
@@ -150,7 +152,9 @@ pub struct Recording {
     source: Source,
     meta: RecordingMeta,
     summary: Summary,
-    /// The chunks in file order.
+    /// The chunks in file order: all of a finished file's (from its index), the
+    /// first and newest of an unfinished one's (what [`Recording::duration_s`]
+    /// may open).
     chunks: Vec<ChunkAt>,
     /// Where the records read as data end: the summary's start for a finished file,
     /// the end of the last complete record for an unfinished one (read as it was
@@ -395,6 +399,7 @@ impl Recording {
         };
         let mut metadata = None;
         let mut chunks = Vec::new();
+        let mut newest = VecDeque::with_capacity(MAX_DURATION_CHUNKS);
         let mut opened = 0;
         let mut at = MAGIC.len() as u64;
         let mut walked = 0u64;
@@ -429,10 +434,16 @@ impl Recording {
                         surface: Some(surface),
                     });
                 }
-                op::CHUNK => chunks.push(ChunkAt {
-                    at: framed.at,
-                    surface: None,
-                }),
+                op::CHUNK => {
+                    // Only the newest are ever opened (for the duration).
+                    if newest.len() == MAX_DURATION_CHUNKS {
+                        newest.pop_front();
+                    }
+                    newest.push_back(ChunkAt {
+                        at: framed.at,
+                        surface: None,
+                    });
+                }
                 op::SCHEMA | op::CHANNEL | op::METADATA => match read_record(&source, &framed) {
                     Ok(Record::Metadata(m)) if m.name == METADATA_NAME => metadata = Some(m),
                     Ok(r) => add(&mut schemas, &mut channels, r),
@@ -452,6 +463,7 @@ impl Recording {
             });
         };
         let meta = meta_from(&file, metadata.metadata)?;
+        chunks.extend(newest);
         Ok(Recording {
             file,
             source,
