@@ -13,12 +13,16 @@
 //! - [`force`]: the force of a local model (eq. 8), the combination of the tip and
 //!   shaft forces (eq. 9, derived again) and the axial/torque split — pure functions
 //!   that server and clients must compute alike.
+//! - [`text`]: text from files and clients made safe to print (control characters
+//!   and terminal escapes written as escapes), for the server's messages and the
+//!   clients' tables alike.
 //!
 //! Units on the wire are SI (m, kg, s, N, Pa, N·m); positions and directions are
 //! in the world frame of the scene, in metres. The `.proto` files are the
 //! reference: every field there states its unit and frame.
 
 pub mod force;
+pub mod text;
 
 /// The package `laparo.v1`: messages, enums, and the tonic `*_client` and
 /// `*_server` modules of each service.

@@ -2,13 +2,31 @@
 //! `ListRecordings` call answers it: each `.mcap` file with its session, scene,
 //! start, duration and size, or why it cannot be read.
 //!
-//! A file without its summary and footer is read as far as it goes
-//! ([`Recording::open_unfinished`]): it is [`FileState::InProgress`] when the
-//! caller knows a session is still writing it (the server does), otherwise
-//! [`FileState::Unfinished`] — a server stopped mid-session, or a session the
-//! caller does not know of.
+//! Only regular files directly in the directory are listed: a symbolic link (to a
+//! file anywhere, or to a FIFO or a device), a directory or a socket is not, even
+//! with a `.mcap` name, and files are opened without following a link
+//! ([`Recording::open_served`]), so nothing outside the directory is ever read.
+//!
+//! A listing reads what it needs of each file and no more (see [`Recording`]): for
+//! a finished file its footer, summary, metadata record and newest chunk holding a
+//! frame; for an unfinished one the prefixes of its records, its first chunk and
+//! its newest chunks ([`super::reader::MAX_WALKED_RECORDS`],
+//! [`super::reader::MAX_DURATION_CHUNKS`]). A [`Lister`] keeps what it found by
+//! file name, size, modification time and inode, so a file that has not changed
+//! is not read again, and lists one directory at a time, so concurrent listings
+//! hold at most one file's reading in memory and the ones that waited find the
+//! answers cached.
+//!
+//! A file without its summary and footer is read as far as it goes: it is
+//! [`FileState::InProgress`] when the caller knows a session is still writing it
+//! (the server does), otherwise [`FileState::Unfinished`] — a server stopped
+//! mid-session, or a session the caller does not know of.
 
+use std::collections::HashMap;
+use std::os::unix::fs::MetadataExt;
 use std::path::Path;
+use std::sync::Mutex;
+use std::time::SystemTime;
 
 use super::reader::{ReadError, Recording};
 
@@ -48,11 +66,70 @@ pub struct Listed {
     pub size_bytes: u64,
     /// What it records, or why it cannot be read.
     pub entry: Result<Listing, ReadError>,
+    /// Bytes this listing read of the file (0 when its answer was cached).
+    pub bytes_read: u64,
 }
 
-/// Opens the recording at `path` as far as it goes and says how its file ends;
-/// `is_recording` tells whether a session is still writing a file. Errors name the
-/// file by its name alone: they go to clients, which know no directory.
+/// What a file was found to hold; its state but for whether a session writes it.
+#[derive(Clone, Debug)]
+struct Found {
+    session_id: String,
+    scene: String,
+    start_unix_ns: u64,
+    duration_s: f64,
+    complete: bool,
+}
+
+/// What identifies a version of a file: size, modification time, inode and device.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Version {
+    size: u64,
+    modified: Option<SystemTime>,
+    inode: (u64, u64),
+}
+
+impl Version {
+    fn of(m: &std::fs::Metadata) -> Self {
+        Version {
+            size: m.len(),
+            modified: m.modified().ok(),
+            inode: (m.dev(), m.ino()),
+        }
+    }
+}
+
+/// A file's last version read, and what it held.
+type Cached = (Version, Result<Found, ReadError>);
+
+/// Lists directories, caching what it reads (see the module documentation).
+#[derive(Debug, Default)]
+pub struct Lister {
+    /// By file name; also the lock that lets one listing read at a time.
+    cache: Mutex<HashMap<String, Cached>>,
+}
+
+/// Reads the recording at `path`, named `file` (its name alone: errors go to
+/// clients, which know no directory).
+fn find(path: &Path, file: &str) -> (Result<Found, ReadError>, u64) {
+    match Recording::open_served(path, file.to_string()) {
+        Err(e) => (Err(e), 0),
+        Ok(recording) => {
+            let meta = recording.meta();
+            let found = recording.duration_s().map(|duration_s| Found {
+                session_id: meta.session_id.clone(),
+                scene: meta.scene.clone(),
+                start_unix_ns: meta.start_unix_ns,
+                duration_s,
+                complete: recording.is_complete(),
+            });
+            (found, recording.bytes_read())
+        }
+    }
+}
+
+/// Opens the recording at `path` as far as it goes, without following a link, and
+/// says how its file ends; `is_recording` tells whether a session is still writing
+/// a file. Errors name the file by its name alone.
 ///
 /// A file read unfinished and not being written is read once more: its session may
 /// have finished it between the read and the question.
@@ -60,22 +137,19 @@ pub fn open(
     path: &Path,
     is_recording: impl Fn(&Path) -> bool,
 ) -> Result<(Recording, FileState), ReadError> {
-    let read = || {
-        let file = path
-            .file_name()
-            .unwrap_or(path.as_os_str())
-            .to_string_lossy()
-            .into_owned();
-        Recording::open_unfinished_as(path, file)
-    };
-    let recording = read()?;
+    let file = path
+        .file_name()
+        .unwrap_or(path.as_os_str())
+        .to_string_lossy()
+        .into_owned();
+    let recording = Recording::open_served(path, file.clone())?;
     if recording.is_complete() {
         return Ok((recording, FileState::Complete));
     }
     if is_recording(path) {
         return Ok((recording, FileState::InProgress));
     }
-    let again = read()?;
+    let again = Recording::open_served(path, file)?;
     let state = if again.is_complete() {
         FileState::Complete
     } else {
@@ -84,51 +158,86 @@ pub fn open(
     Ok((again, state))
 }
 
-/// What the recording at `path` holds (see [`open`]).
-pub fn inspect(path: &Path, is_recording: impl Fn(&Path) -> bool) -> Result<Listing, ReadError> {
-    let (recording, state) = open(path, is_recording)?;
-    let meta = recording.meta();
-    Ok(Listing {
-        session_id: meta.session_id.clone(),
-        scene: meta.scene.clone(),
-        start_unix_ns: meta.start_unix_ns,
-        duration_s: recording.duration_s()?,
-        state,
-    })
+impl Lister {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Every regular file of `dir` whose name ends in `.mcap` (and is UTF-8), oldest
+    /// recording first (by start time, then name), the files that cannot be read
+    /// last (by name).
+    pub fn list(
+        &self,
+        dir: &Path,
+        is_recording: impl Fn(&Path) -> bool,
+    ) -> std::io::Result<Vec<Listed>> {
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        let mut out = Vec::new();
+        for entry in std::fs::read_dir(dir)? {
+            let entry = entry?;
+            let Ok(file) = entry.file_name().into_string() else {
+                continue;
+            };
+            if !file.ends_with(".mcap") {
+                continue;
+            }
+            let path = dir.join(&file);
+            // Not through symbolic links: only what the directory itself holds.
+            let Ok(metadata) = std::fs::symlink_metadata(&path) else {
+                continue;
+            };
+            if !metadata.file_type().is_file() {
+                continue;
+            }
+            let mut version = Version::of(&metadata);
+            let mut bytes_read = 0;
+            let mut read = |version: Version| match cache.get(&file) {
+                Some((v, found)) if *v == version => found.clone(),
+                _ => {
+                    let (found, n) = find(&path, &file);
+                    bytes_read += n;
+                    cache.insert(file.clone(), (version, found.clone()));
+                    found
+                }
+            };
+            let mut found = read(version);
+            if matches!(&found, Ok(f) if !f.complete) && !is_recording(&path) {
+                // Its session may have finished it since.
+                if let Ok(m) = std::fs::symlink_metadata(&path) {
+                    version = Version::of(&m);
+                    found = read(version);
+                }
+            }
+            let entry = found.map(|f| Listing {
+                state: match (f.complete, is_recording(&path)) {
+                    (true, _) => FileState::Complete,
+                    (false, true) => FileState::InProgress,
+                    (false, false) => FileState::Unfinished,
+                },
+                session_id: f.session_id,
+                scene: f.scene,
+                start_unix_ns: f.start_unix_ns,
+                duration_s: f.duration_s,
+            });
+            out.push(Listed {
+                file,
+                size_bytes: version.size,
+                entry,
+                bytes_read,
+            });
+        }
+        // Files gone from the directory are forgotten.
+        cache.retain(|name, _| out.iter().any(|l| &l.file == name));
+        drop(cache);
+        out.sort_by(|a, b| {
+            let key = |l: &Listed| l.entry.as_ref().map_or(u64::MAX, |e| e.start_unix_ns);
+            key(a).cmp(&key(b)).then_with(|| a.file.cmp(&b.file))
+        });
+        Ok(out)
+    }
 }
 
-/// Every file of `dir` whose name ends in `.mcap` (and is UTF-8), oldest recording
-/// first (by start time, then name), the files that cannot be read last (by name).
-/// Files are read one at a time; each is held in memory only while it is listed.
+/// [`Lister::list`] with nothing cached: every file is read.
 pub fn list(dir: &Path, is_recording: impl Fn(&Path) -> bool) -> std::io::Result<Vec<Listed>> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir)? {
-        let entry = entry?;
-        let Ok(file) = entry.file_name().into_string() else {
-            continue;
-        };
-        if !file.ends_with(".mcap") {
-            continue;
-        }
-        let path = dir.join(&file);
-        // Through symbolic links, as reading does; directories are not recordings.
-        let Ok(metadata) = std::fs::metadata(&path) else {
-            continue;
-        };
-        if !metadata.is_file() {
-            continue;
-        }
-        let entry = inspect(&path, &is_recording);
-        let size_bytes = std::fs::metadata(&path).map_or(metadata.len(), |m| m.len());
-        out.push(Listed {
-            file,
-            size_bytes,
-            entry,
-        });
-    }
-    out.sort_by(|a, b| {
-        let key = |l: &Listed| l.entry.as_ref().map_or(u64::MAX, |e| e.start_unix_ns);
-        key(a).cmp(&key(b)).then_with(|| a.file.cmp(&b.file))
-    });
-    Ok(out)
+    Lister::new().list(dir, is_recording)
 }

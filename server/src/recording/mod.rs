@@ -38,11 +38,14 @@
 //!   thread.
 //! - [`recorder`]: the thread that owns a writer, fed through a bounded channel the
 //!   mechanics thread never waits on; drops and failures are counted and reported.
+//! - [`source`]: a recording's bytes, read a record at a time through the file
+//!   handle (never mapped: a file cut short under a reader is an error, not SIGBUS).
 //! - [`reader`]: opens a recording, checks its version, decodes its messages.
 //! - [`summary`]: what a reviewer wants first: duration, path lengths, forces.
 //! - [`list`]: what a recordings directory holds: session, scene, start,
 //!   duration, size, and whether a file is finished, still being written or was
-//!   cut short.
+//!   cut short; only regular files, never through a symbolic link, read within
+//!   stated bounds and cached by name, size and modification time.
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
 //! - [`recover`]: rewrites the file a killed server left into a valid, indexed one.
@@ -57,10 +60,11 @@ pub mod recorder;
 pub mod records;
 pub mod recover;
 pub mod resim;
+pub mod source;
 pub mod summary;
 pub mod writer;
 
-pub use list::{FileState, Listed, Listing, list};
+pub use list::{FileState, Listed, Lister, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderError, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};
@@ -107,3 +111,5 @@ pub fn sim_log_time(start_ns: u64, sim_time: f64) -> u64 {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_files;

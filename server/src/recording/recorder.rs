@@ -104,12 +104,12 @@ impl Report {
 /// with its sources, so that a full disk says so).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum RecorderError {
-    #[error("cannot create {}: {cause}", path.display())]
-    Create { path: PathBuf, cause: String },
-    #[error("cannot write {}: {cause}", path.display())]
-    Write { path: PathBuf, cause: String },
-    #[error("cannot finish {}: {cause}", path.display())]
-    Finish { path: PathBuf, cause: String },
+    #[error("cannot create {file}: {cause}")]
+    Create { file: String, cause: String },
+    #[error("cannot write {file}: {cause}")]
+    Write { file: String, cause: String },
+    #[error("cannot finish {file}: {cause}")]
+    Finish { file: String, cause: String },
 }
 
 /// Counters of a recorder, readable while it runs.
@@ -341,15 +341,22 @@ pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
 /// The thread: create the file, write items as they come, close a chunk at least
 /// every [`FLUSH_INTERVAL`], finish on [`Msg::Finish`] or when the sender is gone.
 fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared) {
-    let fail = |error: fn(PathBuf, String) -> RecorderError, e: &dyn std::error::Error| {
-        let error = error(path.to_path_buf(), with_causes(e));
+    // The file's name alone: the message goes to clients, which know no server
+    // paths.
+    let file = path
+        .file_name()
+        .unwrap_or(path.as_os_str())
+        .to_string_lossy()
+        .into_owned();
+    let fail = |error: fn(String, String) -> RecorderError, e: &dyn std::error::Error| {
+        let error = error(file.clone(), with_causes(e));
         tracing::error!(session = %header.session_id, "recorder: {error}");
         shared.stats.errors.fetch_add(1, Ordering::Relaxed);
         *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(error);
     };
-    let create = |path, cause| RecorderError::Create { path, cause };
-    let write = |path, cause| RecorderError::Write { path, cause };
-    let finish = |path, cause| RecorderError::Finish { path, cause };
+    let create = |file, cause| RecorderError::Create { file, cause };
+    let write = |file, cause| RecorderError::Write { file, cause };
+    let finish = |file, cause| RecorderError::Finish { file, cause };
     let mut sink = match McapSink::create(path, header) {
         Ok(sink) => sink,
         Err(e) => return fail(create, &e),

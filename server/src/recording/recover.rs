@@ -7,6 +7,9 @@
 //! (with their sequence numbers and times) and metadata are written anew, with a
 //! summary, indexes and a footer. So at most what the recorder had not yet closed
 //! into a chunk (the last second, see [`super::writer::FLUSH_INTERVAL`]) is lost.
+//! A file with nothing recoverable (no `laparo.scene` metadata before the damage:
+//! junk after the magic, a file cut inside its first chunk) is an error
+//! ([`RecoverError::NothingToRecover`]), and no file is written.
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
@@ -15,6 +18,7 @@ use std::path::Path;
 use mcap::records::{Channel, MessageHeader, Metadata, Record};
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
 
+use super::METADATA_NAME;
 use super::records::{Records, chunk_records};
 
 /// What a recovery kept and left out.
@@ -46,6 +50,14 @@ pub enum RecoverError {
     NotMcap { file: String },
     #[error("cannot write the recovered recording {file}: {message}")]
     Write { file: String, message: String },
+    /// Nothing before the first record cut short or damaged says what the file
+    /// records (its `laparo.scene` metadata record): a recovered file would be an
+    /// empty MCAP file, so none is written.
+    #[error(
+        "{file} holds nothing recoverable: no `{METADATA_NAME}` record before {why}; \
+         no file written"
+    )]
+    NothingToRecover { file: String, why: String },
 }
 
 /// One record worth keeping, owned.
@@ -115,6 +127,18 @@ pub fn recover_bytes<W: Write + Seek>(
     };
     let (profile, kept) = scan(bytes, &mut recovery);
     recovery.bytes_dropped = bytes.len() as u64 - recovery.bytes_kept;
+    let described = kept
+        .iter()
+        .any(|k| matches!(k, Kept::Metadata(m) if m.name == METADATA_NAME));
+    if !described {
+        return Err(RecoverError::NothingToRecover {
+            file: file.into(),
+            why: recovery
+                .stopped_at
+                .clone()
+                .unwrap_or_else(|| format!("its end at byte {}", bytes.len())),
+        });
+    }
     let write = |e: McapError| RecoverError::Write {
         file: file.into(),
         message: e.to_string(),

@@ -76,11 +76,22 @@ pub struct McapSink<W: Write + Seek> {
 }
 
 impl McapSink<BufWriter<File>> {
-    /// Creates `path` (failing if it exists) and writes the session's header.
+    /// Creates `path` (failing if it exists) and writes the session's header; a
+    /// file whose header cannot be written (a full disk) is removed (see
+    /// [`created`]).
     pub fn create(path: &Path, header: &SessionHeader) -> McapResult<Self> {
-        let file = File::options().write(true).create_new(true).open(path)?;
-        McapSink::new(BufWriter::new(file), header)
+        created(path, |file| McapSink::new(BufWriter::new(file), header))
     }
+}
+
+/// Creates `path` (failing if it exists) and hands it to `start`, which writes
+/// what makes it a recording; when `start` fails the file is removed, so that a
+/// failed start leaves no empty or headless `.mcap` for listings to trip over.
+pub fn created<T>(path: &Path, start: impl FnOnce(File) -> McapResult<T>) -> McapResult<T> {
+    let file = File::options().write(true).create_new(true).open(path)?;
+    start(file).inspect_err(|_| {
+        let _ = std::fs::remove_file(path);
+    })
 }
 
 impl<W: Write + Seek> McapSink<W> {

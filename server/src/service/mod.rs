@@ -161,7 +161,8 @@ pub async fn serve(
     let recordings = service!(
         v1::recordings_server::RecordingsServer<recordings::RecordingsService>,
         recordings::RecordingsService {
-            registry: registry.clone()
+            registry: registry.clone(),
+            lister: Default::default(),
         }
     );
     for name in [

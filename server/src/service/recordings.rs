@@ -6,12 +6,19 @@
 //! are for. A recording still being written is a session going on: watching it is
 //! observing, which needs an instructor as `Observe` does.
 //!
-//! `ListRecordings` gives the files [`crate::recording::list`] reads: finished
-//! recordings, and those a session of this server is still writing (`in_progress`,
-//! with what their complete chunks hold). A file that cannot be replayed — not
-//! MCAP, corrupt where the listing looks, of another format version, or cut short by
-//! a stopped server — is left out (and logged): a listing has no place to say why,
-//! `Replay` of it says it, and `laparo recordings list --dir` shows it. The listing
+//! Only regular files directly in the recordings directory are served, never
+//! through a symbolic link; files are named relative to the directory in every
+//! status, and what comes from files or clients (names, metadata) is escaped
+//! ([`printable`]) in statuses and listings.
+//!
+//! `ListRecordings` gives the files [`crate::recording::list`] reads, each with
+//! its state: finished, still written by a session of this server (with what its
+//! complete chunks hold), or unfinished — cut short by a stopped server, listed
+//! with what its complete chunks hold so that a crash does not hide recoverable
+//! sessions. A file that cannot be read as a recording — not MCAP, corrupt where
+//! the listing looks, of another format version — is left out (and logged): a
+//! listing has no place to say why, `Replay` of it says it, and
+//! `laparo recordings list --dir` shows it. The listing
 //! checks what it reads (header, summary, metadata, the last chunk with a frame); a
 //! chunk damaged elsewhere is found by the replay that reaches it.
 //!
@@ -32,6 +39,7 @@ use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, UNIX_EPOCH};
 
+use laparo_proto::text::{needs_escape, printable};
 use laparo_proto::v1;
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
@@ -47,6 +55,9 @@ use crate::recording::{ReadError, Recording};
 
 pub struct RecordingsService {
     pub registry: Arc<Registry>,
+    /// What the recordings directory's files were found to hold, by name, size and
+    /// modification time; one listing reads at a time ([`list::Lister`]).
+    pub lister: Arc<list::Lister>,
 }
 
 /// Fastest replay, times real time: a few minutes of frames in seconds.
@@ -103,11 +114,15 @@ pub fn start_offset(asked: Option<f64>) -> Result<f64, Status> {
 }
 
 /// Checks that `name` is a bare `.mcap` file name: no directory part, no `..`, not
-/// absolute, so that it names a file of the recordings directory and nothing else.
+/// absolute, so that it names a file of the recordings directory and nothing else;
+/// and without control characters, which no recording the server writes has
+/// (its names are the session id and the scene name reduced to `[A-Za-z0-9_-]`)
+/// and a listing leaves out. The name is echoed escaped ([`printable`]).
 pub fn file_name(name: &str) -> Result<&str, Status> {
     let bad = |why: &str| {
         Err(Status::invalid_argument(format!(
-            "`{name}` is not a recording's file name: {why}"
+            "`{}` is not a recording's file name: {why}",
+            printable(name)
         )))
     };
     if name.is_empty() {
@@ -115,6 +130,9 @@ pub fn file_name(name: &str) -> Result<&str, Status> {
     }
     if name.contains(['/', '\\', '\0']) {
         return bad("give the bare file name, without a directory");
+    }
+    if name.chars().any(needs_escape) {
+        return bad("it holds control characters");
     }
     let mut components = Path::new(name).components();
     if !matches!(
@@ -149,15 +167,22 @@ async fn blocking<T: Send + 'static>(
         .map_err(|e| Status::internal(format!("reading recordings failed: {e}")))?
 }
 
+/// A listed recording as the contract states it; what comes from the file's
+/// metadata is escaped ([`printable`]).
 fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
     v1::RecordingInfo {
         file,
-        session_id: l.session_id.clone(),
-        scene: l.scene.clone(),
+        session_id: printable(&l.session_id).into_owned(),
+        scene: printable(&l.scene).into_owned(),
         start: Some((UNIX_EPOCH + Duration::from_nanos(l.start_unix_ns)).into()),
         duration_s: l.duration_s,
         size_bytes,
         in_progress: l.state == FileState::InProgress,
+        state: match l.state {
+            FileState::Complete => v1::RecordingState::Complete,
+            FileState::InProgress => v1::RecordingState::InProgress,
+            FileState::Unfinished => v1::RecordingState::Unfinished,
+        } as i32,
     }
 }
 
@@ -176,15 +201,18 @@ fn open_for_replay(
     offset: f64,
 ) -> Result<Opened, Status> {
     let path = dir.join(name);
-    match std::fs::metadata(&path) {
-        Ok(m) if m.is_file() => {}
+    // The entry itself, not what a link points to: only regular files of the
+    // directory are recordings (and they are opened without following a link).
+    match std::fs::symlink_metadata(&path) {
+        Ok(m) if m.file_type().is_file() => {}
         Ok(_) => return Err(Status::not_found(format!("no recording `{name}`"))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(Status::not_found(format!("no recording `{name}`")));
         }
         Err(e) => {
             return Err(Status::failed_precondition(format!(
-                "cannot read recording `{name}`: {e}"
+                "cannot read recording `{name}`: {}",
+                printable(&e.to_string())
             )));
         }
     }
@@ -229,26 +257,31 @@ impl v1::recordings_server::Recordings for RecordingsService {
         caller(&request)?;
         let dir = self.dir()?;
         let registry = self.registry.clone();
+        let lister = self.lister.clone();
         let listed = blocking(move || {
-            list::list(&dir, |p| registry.is_recording(p)).map_err(|e| {
-                Status::failed_precondition(format!(
-                    "cannot read the recordings directory {}: {e}",
-                    dir.display()
-                ))
-            })
+            lister
+                .list(&dir, |p| registry.is_recording(p))
+                .map_err(|e| {
+                    tracing::warn!(dir = %dir.display(), "cannot read the recordings directory: {e}");
+                    // Not the directory's path: clients know no server paths.
+                    Status::failed_precondition(format!(
+                        "cannot read the recordings directory: {e}"
+                    ))
+                })
         })
         .await?;
         let mut recordings = Vec::new();
         for l in listed {
+            if l.file.chars().any(needs_escape) {
+                // Not a name the server writes, nor one `Replay` takes.
+                tracing::warn!(file = %printable(&l.file), "not listed: its name holds control characters");
+                continue;
+            }
             match &l.entry {
-                Ok(e) if e.state != FileState::Unfinished => {
-                    recordings.push(info(l.file, l.size_bytes, e));
+                Ok(e) => recordings.push(info(l.file, l.size_bytes, e)),
+                Err(e) => {
+                    tracing::warn!(file = %l.file, "not listed: {}", printable(&e.to_string()))
                 }
-                Ok(_) => tracing::warn!(
-                    file = %l.file,
-                    "not listed: it ends without its summary (cut short by a stopped server)"
-                ),
-                Err(e) => tracing::warn!(file = %l.file, "not listed: {e}"),
             }
         }
         Ok(Response::new(v1::ListRecordingsResponse { recordings }))

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::Duration;
 
+use laparo_proto::text::printable;
 use tokio::sync::watch;
 use tonic::Status;
 
@@ -87,7 +88,7 @@ impl Registry {
             .catalog
             .scenes
             .get(name)
-            .ok_or_else(|| Status::not_found(format!("no scene `{name}`")))?
+            .ok_or_else(|| Status::not_found(format!("no scene `{}`", printable(name))))?
             .clone();
         let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
         let record = record.unwrap_or(scene.recording.enabled);
@@ -125,9 +126,12 @@ impl Registry {
             Some(s) if !s.is_closed() => Ok(s.clone()),
             Some(_) => {
                 map.remove(id);
-                Err(Status::not_found(format!("session `{id}` is closed")))
+                Err(Status::not_found(format!(
+                    "session `{}` is closed",
+                    printable(id)
+                )))
             }
-            None => Err(Status::not_found(format!("no session `{id}`"))),
+            None => Err(Status::not_found(format!("no session `{}`", printable(id)))),
         }
     }
 
@@ -144,7 +148,7 @@ impl Registry {
         let session = self
             .map()
             .remove(id)
-            .ok_or_else(|| Status::not_found(format!("no session `{id}`")))?;
+            .ok_or_else(|| Status::not_found(format!("no session `{}`", printable(id))))?;
         session.close(reason);
         tokio::task::block_in_place(|| session.join());
         Ok(session)

@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use laparo_proto::text::printable;
 use laparo_proto::v1;
 use laparo_proto::v1::scenes_server::Scenes;
 use tonic::{Request, Response, Status};
@@ -23,7 +24,7 @@ impl ScenesService {
             .catalog
             .scenes
             .get(name)
-            .ok_or_else(|| Status::not_found(format!("no scene `{name}`")))?;
+            .ok_or_else(|| Status::not_found(format!("no scene `{}`", printable(name))))?;
         let sim = tokio::task::block_in_place(|| scene.build()).map_err(|e| {
             Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
         })?;

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use laparo_proto::text::printable;
 use laparo_proto::v1;
 use laparo_proto::v1::sessions_server::Sessions;
 use tonic::{Request, Response, Status};
@@ -66,11 +67,12 @@ impl Sessions for SessionsService {
         caller(&request)?.require_instructor("closing a session")?;
         let r = request.get_ref();
         let reason = if r.reason.is_empty() {
-            "closed by an instructor"
+            "closed by an instructor".into()
         } else {
-            &r.reason
+            // Escaped: it goes into the closing event and every stream's status.
+            printable(&r.reason)
         };
-        let session = self.registry.close(&r.session_id, reason)?;
+        let session = self.registry.close(&r.session_id, &reason)?;
         Ok(Response::new(v1::CloseSessionResponse {
             session: Some(session.info()),
         }))

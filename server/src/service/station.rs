@@ -16,6 +16,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use laparo_proto::text::printable;
 use laparo_proto::v1;
 use laparo_proto::v1::ErrorCode;
 use laparo_proto::v1::station_message::Kind;
@@ -96,19 +97,22 @@ impl v1::station_server::Station for StationService {
         for name in &open.instruments {
             let k = session.instrument_index(name).ok_or_else(|| {
                 Status::not_found(format!(
-                    "session `{}` has no instrument `{name}`",
-                    session.id
+                    "session `{}` has no instrument `{}`",
+                    session.id,
+                    printable(name)
                 ))
             })?;
             if caller.role == Role::Trainee && !caller.may_claim(name) {
                 return Err(Status::permission_denied(format!(
-                    "`{}` may not claim instrument `{name}`",
-                    caller.name
+                    "`{}` may not claim instrument `{}`",
+                    caller.name,
+                    printable(name)
                 )));
             }
             if claimed.contains(&k) {
                 return Err(Status::invalid_argument(format!(
-                    "instrument `{name}` claimed twice"
+                    "instrument `{}` claimed twice",
+                    printable(name)
                 )));
             }
             claimed.push(k);
@@ -127,7 +131,8 @@ impl v1::station_server::Station for StationService {
             Session::add_station(
                 &mut roster,
                 role,
-                &open.client_name,
+                // Escaped once here: the name goes into events and session infos.
+                &printable(&open.client_name),
                 &claimed,
                 open.instruments.clone(),
             )
@@ -136,7 +141,12 @@ impl v1::station_server::Station for StationService {
             v1::EventKind::StationJoined,
             Some(station),
             None,
-            format!("{} ({})", open.client_name, open.instruments.join(", ")),
+            printable(&format!(
+                "{} ({})",
+                open.client_name,
+                open.instruments.join(", ")
+            ))
+            .into_owned(),
         );
         let (tx, rx) = mpsc::channel(OUTBOUND);
         let joined = v1::ServerMessage {
@@ -309,25 +319,32 @@ fn accept_pose(
         Err((
             Rejection { code, message },
             Some(p.sequence),
-            Some(p.instrument.clone()),
+            // Echoed in the station's error and the rejection event: escaped.
+            Some(printable(&p.instrument).into_owned()),
         ))
     };
     let Some(k) = session.instrument_index(&p.instrument) else {
         return refuse(
             ErrorCode::UnknownInstrument,
-            format!("no instrument `{}` in this session", p.instrument),
+            format!(
+                "no instrument `{}` in this session",
+                printable(&p.instrument)
+            ),
         );
     };
     let Some(claim) = claims.iter_mut().find(|c| c.index == k) else {
         return refuse(
             ErrorCode::InstrumentNotHeld,
-            format!("this station does not hold `{}`", p.instrument),
+            format!("this station does not hold `{}`", printable(&p.instrument)),
         );
     };
     if !claim.limit.admit(now) {
         return refuse(
             ErrorCode::RateLimited,
-            format!("poses of `{}` over the rate limit", p.instrument),
+            format!(
+                "poses of `{}` over the rate limit",
+                printable(&p.instrument)
+            ),
         );
     }
     match check_pose(p, &session.workspace, claim.last) {

@@ -186,27 +186,27 @@ fn the_duration_is_the_last_frames_time_from_the_index_or_every_frame() {
 }
 
 #[test]
-fn a_finished_file_is_mapped_and_a_recovery_over_it_leaves_the_map_whole() {
+fn a_recovery_over_an_open_recording_leaves_it_reading_what_was_written() {
     let dir = temp();
-    let path = dir.path().join("mapped.mcap");
+    let path = dir.path().join("open.mcap");
     // 24 ticks in chunks of 5.
     let (boundaries, bytes) = chunked(&path, 24, 5);
     let rec = Recording::open(&path).unwrap();
-    assert!(rec.is_mapped());
+    assert!(rec.is_complete());
     let before = rec.surfaces().unwrap();
     assert_eq!(before.len(), 24);
-    // Cut after the second chunk, it is read into memory: a file being written
-    // changes under a map.
+    // Cut after the second chunk: an unfinished file.
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..boundaries[2].0 as usize]).unwrap();
     let partial = Recording::open_unfinished(&cut).unwrap();
-    assert!(!partial.is_mapped() && !partial.is_complete());
-    // Recovering the cut copy over the mapped file renames a new file over it: the
-    // open recording still reads every tick as written.
+    assert!(!partial.is_complete());
+    // Recovering the cut copy over the open file renames a new file over it: the
+    // open recording reads through its own handle, and still reads every tick as
+    // written.
     recover(&cut, &path).unwrap();
     assert_eq!(rec.surfaces().unwrap(), before);
-    // And the path now holds the shorter recovered recording, mapped in its turn.
+    // And the path now holds the shorter recovered recording.
     let now = Recording::open(&path).unwrap();
-    assert!(now.is_mapped());
+    assert!(now.is_complete());
     assert_eq!(now.surfaces().unwrap()[..], before[..10]);
 }
