@@ -106,6 +106,12 @@ impl CgWorkspace {
         let mut r_norm = norm(&self.r);
         let mut iterations = 0;
         while r_norm > goal && iterations < max_iterations {
+            // A residual that has sunk into subnormal numbers is round-off: its
+            // quotients (α = rz/pq, β = rz'/rz) would divide by underflowed values
+            // and blow up to infinity or NaN. It cannot be reduced further.
+            if !rz.is_normal() {
+                break;
+            }
             apply(&self.p, &mut self.q);
             let mut pq = 0.0;
             for i in 0..n {
@@ -114,9 +120,10 @@ impl CgWorkspace {
                 }
                 pq += self.p[i].dot(&self.q[i]);
             }
-            if pq <= 0.0 || !pq.is_finite() {
+            if pq <= 0.0 || !pq.is_normal() {
                 // A is SPD on the free set, so this is a breakdown from round-off at a
-                // converged residual, or a system without enough supports.
+                // converged residual (or one sunk into subnormals, whose quotient would
+                // overflow), or a system without enough supports.
                 break;
             }
             let alpha = rz / pq;
