@@ -13,7 +13,7 @@ use crate::engine::integrate::{
 };
 use crate::engine::local_model::LocalModelStage;
 use crate::engine::material::Material;
-use crate::engine::mesh::{TetMesh, read_gmsh, read_gmsh_file};
+use crate::engine::mesh::{MeshError, MeshErrorKind, TetMesh, read_gmsh};
 
 /// A built scene: the liver's mesh, elastic model and state, its supports, and the
 /// integrator, advanced one mechanics tick at a time.
@@ -226,7 +226,25 @@ impl Scene {
         {
             path = dir.join(path);
         }
-        read_gmsh_file(&path).map_err(wrap)
+        let source = path.display().to_string();
+        let bytes =
+            match super::read_bounded(&path, self.mesh_root.as_deref(), super::MAX_MESH_BYTES) {
+                Ok(bytes) => bytes,
+                Err(super::FileError::Io(e)) => {
+                    return Err(wrap(MeshError {
+                        source,
+                        line: None,
+                        kind: MeshErrorKind::Io {
+                            kind: e.kind(),
+                            message: e.to_string(),
+                        },
+                    }));
+                }
+                Err(e) => return Err(self.invalid("mesh.file", format!("{source} {e}"))),
+            };
+        // A binary Gmsh file is not UTF-8 past its header: a lossy conversion keeps the
+        // header readable, so the reader can say "binary" rather than "not text".
+        read_gmsh(&String::from_utf8_lossy(&bytes), &source).map_err(wrap)
     }
 
     /// The distinct materials and each tetrahedron's material index.

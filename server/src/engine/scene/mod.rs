@@ -11,10 +11,12 @@
 
 mod build;
 mod error;
+mod files;
 mod schema;
 
 pub use build::{Simulation, TickTiming};
 pub use error::SceneError;
+pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, read_bounded};
 pub use schema::{
     BoxSpec, FixedSpec, ForceModelKind, ForceModelSpec, InstrumentSpec, MaterialSpec,
     MechanicsSpec, MeshSpec, RecordingSpec, RegionSpec, Scene,
@@ -30,3 +32,5 @@ pub const BUILTIN_MESHES: &[(&str, &str)] =
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_files;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::SceneError;
+use super::files::{MAX_SCENE_BYTES, read_bounded};
 use crate::engine::integrate::IntegratorKind;
 
 /// A scene as declared in its TOML file.
@@ -33,6 +34,12 @@ pub struct Scene {
     /// The folder relative paths are resolved against (the scene file's folder).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
+    /// When set, the mesh file must lie inside this folder (the server's scene
+    /// directory), symlinks followed; `None` (a scene given on the command line, or
+    /// built from a recording): anywhere. Either way only a regular file of at most
+    /// [`super::MAX_MESH_BYTES`] is read.
+    #[serde(skip)]
+    pub mesh_root: Option<PathBuf>,
     /// Where the scene came from, for messages.
     #[serde(skip)]
     pub source: String,
@@ -250,13 +257,29 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Reads and checks a scene file.
+    /// Reads and checks a scene file (a regular file of at most
+    /// [`super::MAX_SCENE_BYTES`]); its mesh is read relative to it.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_from(path, None)
+    }
+
+    /// Reads and checks a scene file of a server's scene directory `dir`: the file and
+    /// its mesh must lie inside `dir` (symlinks followed), as well as being regular
+    /// files within the size limits.
+    pub fn load_served(path: &Path, dir: &Path) -> Result<Scene, SceneError> {
+        let mut scene = Scene::load_from(path, Some(dir))?;
+        scene.mesh_root = Some(dir.to_path_buf());
+        Ok(scene)
+    }
+
+    fn load_from(path: &Path, root: Option<&Path>) -> Result<Scene, SceneError> {
         let source = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+        let io = |message: String| SceneError::Io {
             scene: source.clone(),
-            message: e.to_string(),
-        })?;
+            message,
+        };
+        let bytes = read_bounded(path, root, MAX_SCENE_BYTES).map_err(|e| io(e.to_string()))?;
+        let text = String::from_utf8(bytes).map_err(|e| io(format!("not UTF-8 text: {e}")))?;
         Scene::parse(&text, &source, path.parent())
     }
 
