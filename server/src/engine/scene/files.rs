@@ -22,7 +22,8 @@ use std::path::{Path, PathBuf};
 
 /// Largest mesh file read, bytes: 32 MiB, twice liver-300k's 16.7 MB `.msh` (60k
 /// vertices, 309k tetrahedra). A mesh that size takes about half a second to build
-/// and a few hundred MB of memory.
+/// and a few hundred MB of memory; the per-tick work bound
+/// ([`super::limits::MAX_TICK_WORK`]) is what keeps its ticks finite.
 pub const MAX_MESH_BYTES: u64 = 32 << 20;
 
 /// Largest scene file read, bytes: 1 MiB. A scene is a page of TOML (the default is

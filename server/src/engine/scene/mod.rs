@@ -12,6 +12,7 @@
 mod build;
 mod error;
 mod files;
+pub mod limits;
 mod schema;
 
 pub use build::{Simulation, TickTiming};
@@ -34,3 +35,5 @@ pub const BUILTIN_MESHES: &[(&str, &str)] =
 mod tests;
 #[cfg(test)]
 mod tests_files;
+#[cfg(test)]
+mod tests_limits;
