@@ -50,6 +50,8 @@ impl Mechanics {
     /// that starts more than a period late counts as missed, and the schedule
     /// resynchronises instead of bursting to catch up.
     fn run(mut self) {
+        // Closing stops a tick between substeps or CG iterations, however long it is.
+        self.sim.integrator.set_interrupt(self.stop.clone());
         let dt = Duration::from_secs_f64(self.sim.dt);
         let n = self.sim.instruments.len();
         let mut holders: Vec<Option<(u64, u64)>> = vec![None; n];
@@ -77,6 +79,10 @@ impl Mechanics {
                 }
             }
             self.sim.tick();
+            if self.stop.load(Ordering::Relaxed) {
+                // Closing cut the tick short: it is not published.
+                break;
+            }
             let frame = Frame {
                 tick: self.sim.tick,
                 sim_time: self.sim.time,

@@ -23,7 +23,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::thread::JoinHandle;
-use std::time::{Duration, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
@@ -100,6 +100,13 @@ pub struct Session {
 
 /// Events a slow stream may fall behind by before it skips (and is told so).
 pub const EVENT_BACKLOG: usize = 1024;
+
+/// How long closing a session (or the server) waits for its mechanics thread: 5 s.
+/// The thread stops within one explicit substep or CG iteration of being told (a few
+/// ms on the largest mesh), then finishes the recording (writes its last chunk and
+/// footer); a thread still busy after that is left to end on its own, so that closing
+/// never hangs.
+pub const MECHANICS_JOIN_TIMEOUT: Duration = Duration::from_secs(5);
 
 impl Session {
     /// Builds the scene and starts its mechanics thread.
@@ -344,12 +351,33 @@ impl Session {
         }
     }
 
-    /// Waits for the mechanics thread to end (after [`close`](Self::close)).
-    pub fn join(&self) {
-        let thread = self.thread.lock().unwrap_or_else(|e| e.into_inner()).take();
-        if let Some(t) = thread {
+    /// Waits for the mechanics thread to end (after [`close`](Self::close)), at most
+    /// [`MECHANICS_JOIN_TIMEOUT`]; whether it ended.
+    pub fn join(&self) -> bool {
+        self.join_until(Instant::now() + MECHANICS_JOIN_TIMEOUT)
+    }
+
+    /// Waits for the mechanics thread to end until `deadline`; whether it ended. A
+    /// thread still running then is left to end on its own (it has been told to stop).
+    pub fn join_until(&self, deadline: Instant) -> bool {
+        let mut slot = self.thread.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(t) = slot.as_ref() else {
+            return true;
+        };
+        while !t.is_finished() {
+            if Instant::now() >= deadline {
+                tracing::warn!(
+                    session = %self.id,
+                    "the mechanics thread has not stopped yet; not waiting for it"
+                );
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if let Some(t) = slot.take() {
             let _ = t.join();
         }
+        true
     }
 
     /// The session as the contract describes it.
