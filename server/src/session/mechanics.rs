@@ -94,6 +94,10 @@ impl Mechanics {
                     })
                     .collect(),
             };
+            if let Some(fault) = super::first_non_finite(&frame.surface, &frame.instruments) {
+                self.halt(fault, idle_since);
+                break;
+            }
             let events = &self.events;
             let recorder = self.recorder.as_deref();
             contacts.update(
@@ -127,18 +131,27 @@ impl Mechanics {
                 tick_ms.clear();
                 // Once a second: close when nobody has been connected for the idle
                 // timeout.
-                let Some(session) = self.session.upgrade() else {
+                if !self.check_idle(&mut idle_since, started) {
                     break;
-                };
-                if session.stats.connected.load(Ordering::Relaxed) == 0 {
-                    let since = *idle_since.get_or_insert(started);
-                    if session.idle_timeout.is_some_and(|t| started - since >= t) {
-                        session.close("idle timeout");
-                    }
-                } else {
-                    idle_since = None;
                 }
             }
         }
+    }
+
+    /// Closes the session when nobody has been connected to it for its idle timeout
+    /// (`idle_since`: since when nobody is); `false` once the session is gone.
+    pub(super) fn check_idle(&self, idle_since: &mut Option<Instant>, now: Instant) -> bool {
+        let Some(session) = self.session.upgrade() else {
+            return false;
+        };
+        if session.stats.connected.load(Ordering::Relaxed) == 0 {
+            let since = *idle_since.get_or_insert(now);
+            if session.idle_timeout.is_some_and(|t| now - since >= t) {
+                session.close("idle timeout");
+            }
+        } else {
+            *idle_since = None;
+        }
+        true
     }
 }

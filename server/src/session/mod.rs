@@ -15,13 +15,16 @@
 //! event. The mechanics thread finishes the file when it stops.
 
 pub mod describe;
+mod halt;
 pub mod input;
 mod mechanics;
+#[cfg(test)]
+mod tests_halt;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, Weak};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
@@ -30,6 +33,7 @@ use tokio::sync::{broadcast, watch};
 
 use crate::engine::scene::{Scene, SceneError};
 use crate::recording::{Item, Recorder, Report, SessionHeader};
+pub use halt::first_non_finite;
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
 /// The state of the liver and the instruments after one tick.
@@ -66,6 +70,8 @@ pub struct SessionStats {
     pub poses_rejected: AtomicU64,
     /// Open station and observe streams.
     pub connected: AtomicU64,
+    /// Why the simulation stopped (a non-finite value), once it has.
+    pub simulation_error: OnceLock<String>,
 }
 
 /// Who is in the session.
@@ -422,6 +428,7 @@ impl Session {
             recorder_dropped: recorder(|r| r.dropped.load(Ordering::Relaxed)),
             recorder_max_backlog: recorder(|r| r.max_backlog.load(Ordering::Relaxed)),
             recorder_max_lag_ms: recorder(|r| r.max_lag_us.load(Ordering::Relaxed)) as f64 * 1e-3,
+            simulation_error: s.simulation_error.get().cloned(),
         }
     }
 
