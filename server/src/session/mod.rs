@@ -16,6 +16,7 @@
 
 pub mod describe;
 mod halt;
+pub mod idle;
 pub mod input;
 mod mechanics;
 #[cfg(test)]
@@ -34,6 +35,7 @@ use tokio::sync::{broadcast, watch};
 use crate::engine::scene::{Scene, SceneError};
 use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use halt::first_non_finite;
+pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
 /// The state of the liver and the instruments after one tick.
