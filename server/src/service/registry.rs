@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::Duration;
 
+use laparo_proto::v1;
 use tokio::sync::watch;
 use tonic::Status;
 
@@ -17,35 +18,60 @@ use crate::session::{Session, SessionConfig};
 #[derive(Debug, Default)]
 pub struct SceneCatalog {
     pub scenes: BTreeMap<String, Scene>,
+    /// Files of the directory that are not offered, and why: they do not read or
+    /// parse (regular files of at most `MAX_SCENE_BYTES`, inside the directory), or
+    /// repeat a name already offered. `ListScenes` reports them beside the scenes.
+    pub unavailable: Vec<v1::SceneProblem>,
 }
 
 impl SceneCatalog {
-    /// The default scene, and every `*.toml` in `dir` (each must parse; a broken file
-    /// is an error naming it, so a typo does not silently hide a scene).
+    /// The default scene, and every `*.toml` in `dir`, in file-name order. A file that
+    /// does not load is left out, logged and kept in [`unavailable`](Self::unavailable),
+    /// so that one broken file neither hides the others nor stops the server; a name
+    /// already offered (by the default scene or an earlier file) keeps the first, with
+    /// a warning naming both files. Only an unreadable directory is an error.
     pub fn load(dir: Option<&Path>) -> Result<Self, String> {
-        let mut scenes = BTreeMap::new();
+        let mut catalog = SceneCatalog::default();
         let default = Scene::default_scene();
-        scenes.insert(default.name.clone(), default);
-        if let Some(dir) = dir {
-            let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-            let mut files: Vec<PathBuf> = entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-                .collect();
-            files.sort();
-            for f in files {
-                let scene = Scene::load(&f).map_err(|e| e.to_string())?;
-                if scenes.contains_key(&scene.name) {
-                    return Err(format!(
-                        "{}: a scene named `{}` is already loaded",
-                        f.display(),
-                        scene.name
-                    ));
-                }
-                scenes.insert(scene.name.clone(), scene);
-            }
+        catalog.scenes.insert(default.name.clone(), default);
+        let Some(dir) = dir else {
+            return Ok(catalog);
+        };
+        let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let mut files: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        for f in files {
+            let file = f
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            let problem = match Scene::load_served(&f, dir) {
+                Ok(scene) => match catalog.scenes.get(&scene.name) {
+                    None => {
+                        catalog.scenes.insert(scene.name.clone(), scene);
+                        continue;
+                    }
+                    Some(first) => v1::SceneProblem {
+                        error: format!(
+                            "a scene named `{}` is already offered by {}; keeping that one",
+                            scene.name, first.source
+                        ),
+                        name: scene.name,
+                        file,
+                    },
+                },
+                Err(e) => v1::SceneProblem {
+                    name: String::new(),
+                    file,
+                    error: e.to_string(),
+                },
+            };
+            tracing::warn!(file = %f.display(), "scene not offered: {}", problem.error);
+            catalog.unavailable.push(problem);
         }
-        Ok(SceneCatalog { scenes })
+        Ok(catalog)
     }
 }
 
