@@ -7,13 +7,14 @@
 //!   the bearer-token interceptor.
 //! - [`station`]: [`run_station`](station::run_station) joins a session and drives
 //!   instruments through force loops on their own threads, measuring pose-to-state
-//!   latency ([`latency`]) with scripted gestures ([`trajectory`]).
+//!   latency ([`latency`]) with scripted gestures ([`gestures`]).
 //! - [`observe`]: [`run_observe`](observe::run_observe), a live view of a session.
 //! - [`load`]: [`run_load`](load::run_load), N concurrent stations on one session.
 //! - [`plot`]: `laparo replay --plot`, a recording's forces over time as a PNG.
-//! - [`cli`]: the `laparo` command line's arguments.
-//!
-//! Replay and the demo land with the server and recording work.
+//! - [`gestures`]: the scripted instrument gestures of simulated stations, the demo,
+//!   the workspace's tests and its benchmarks.
+//! - [`cmd`]: the `laparo` command line, one module per subcommand (its arguments,
+//!   runner and printing).
 //!
 //! # Force loop
 //!
@@ -29,13 +30,12 @@
 
 pub use laparo_proto as proto;
 
-pub mod cli;
+pub mod cmd;
 pub mod connect;
-pub mod demo;
+pub mod gestures;
 pub mod haptics;
 pub mod latency;
 pub mod load;
 pub mod observe;
 pub mod plot;
 pub mod station;
-pub mod trajectory;

@@ -2,7 +2,7 @@
 //!
 //! The first `min(N, free instruments)` stations each claim one free instrument of
 //! the session (the default scene has two, "left" and "right") and send scripted
-//! poses (the default press of [`crate::trajectory`]) from a tokio task at the pose
+//! poses (the default press of [`crate::gestures`]) from a tokio task at the pose
 //! rate; no force loop runs. The other stations join with an empty instrument list:
 //! they receive surface frames, instrument states and events, and send no pose.
 //!
@@ -21,16 +21,12 @@ use tokio::task::JoinSet;
 use tokio::time::MissedTickBehavior;
 
 use crate::connect::{ConnectConfig, Connection, connect};
-use crate::latency::{LatencyHistogram, LatencySummary, SendTimes};
-use crate::proto::force::wire;
+use crate::gestures::default_press_for;
+use crate::latency::{LatencyHistogram, LatencySummary};
 use crate::proto::v1::{
-    self, CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Leave, Role,
-    SessionInfo, StationMessage, server_message, station_message,
+    CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Role, SessionInfo,
 };
-use crate::station::{
-    JoinedStream, LEAVE_GRACE, SEND_TIMES_CAPACITY, StationError, error_code_name, join,
-};
-use crate::trajectory::default_press_for;
+use crate::station::{Intake, Link, Poses, Received, Sent, StationError};
 
 /// What [`run_load`] does.
 #[derive(Clone, Debug, PartialEq)]
@@ -96,6 +92,22 @@ struct StationLoad {
     poses_dropped: u64,
     errors: BTreeMap<String, u64>,
     latency: LatencyHistogram,
+}
+
+impl StationLoad {
+    /// What a station received and sent; a pose is dropped when the queue was full
+    /// or the request stream gone.
+    fn of(posing: bool, intake: Intake, poses: &Poses) -> Self {
+        StationLoad {
+            posing,
+            frames: intake.frames,
+            states: intake.states,
+            poses_sent: poses.sent,
+            poses_dropped: poses.full + poses.closed,
+            errors: intake.errors,
+            latency: intake.latency,
+        }
+    }
 }
 
 /// The result of a load run.
@@ -341,7 +353,8 @@ pub async fn run_load(
 }
 
 /// One station of a load run: join, pose (if granted an instrument) and count for
-/// `duration`, then leave.
+/// `duration`, then leave; the steps of [`crate::station`], with the default press
+/// sent from this task instead of a force loop.
 async fn load_station(
     connection: &Connection,
     open: JoinRequest,
@@ -349,31 +362,17 @@ async fn load_station(
     duration: Duration,
     counters: &Counters,
 ) -> Result<StationLoad, StationError> {
-    let JoinedStream {
-        outgoing,
-        mut incoming,
-        joined,
-    } = join(connection, open).await?;
+    let mut link = Link::join(connection, open).await?;
     counters.joined.fetch_add(1, Ordering::Relaxed);
     let t0 = Instant::now();
-    let scene = joined.scene.clone().unwrap_or_default();
+    let scene = link.joined.scene.clone().unwrap_or_default();
     // At most one instrument is claimed.
-    let instrument = joined.instruments.first().and_then(|name| {
+    let instrument = link.joined.instruments.first().and_then(|name| {
         let description = scene.instruments.iter().find(|d| &d.name == name)?;
         Some((name.clone(), default_press_for(&scene, description)))
     });
-    let mut load = StationLoad {
-        posing: instrument.is_some(),
-        frames: 0,
-        states: 0,
-        poses_sent: 0,
-        poses_dropped: 0,
-        errors: BTreeMap::new(),
-        latency: LatencyHistogram::new(),
-    };
-    let mut send_times = SendTimes::new(SEND_TIMES_CAPACITY);
-    let mut last_sequence: Option<u64> = None;
-    let mut sequence = 0u64;
+    let mut intake = Intake::new(&link.joined.instruments);
+    let mut poses = Poses::new();
     let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / pose_rate_hz));
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let deadline = tokio::time::sleep(duration);
@@ -383,74 +382,31 @@ async fn load_station(
         tokio::select! {
             biased;
             _ = &mut deadline => break,
-            message = incoming.message() => match message {
-                Ok(Some(message)) => match message.kind {
-                    Some(server_message::Kind::SurfaceFrame(_)) => {
-                        load.frames += 1;
+            message = link.next() => match message? {
+                Some(message) => match intake.take(&message, &mut poses)? {
+                    Received::Frame => {
                         counters.frames.fetch_add(1, Ordering::Relaxed);
                     }
-                    Some(server_message::Kind::InstrumentState(state)) => {
-                        load.states += 1;
+                    Received::State { .. } => {
                         counters.states.fetch_add(1, Ordering::Relaxed);
-                        let now = Instant::now();
-                        let mine = instrument.as_ref().is_some_and(|(name, _)| *name == state.instrument);
-                        let new_pose = state
-                            .pose_sequence
-                            .filter(|&s| mine && last_sequence.is_none_or(|last| s > last));
-                        if let Some(s) = new_pose {
-                            last_sequence = Some(s);
-                            if let Some(sent) = send_times.take(s) {
-                                load.latency.record(now - sent);
-                            }
-                        }
                     }
-                    Some(server_message::Kind::Error(error)) => {
-                        *load.errors.entry(error_code_name(error.code)).or_default() += 1;
-                    }
-                    Some(server_message::Kind::Joined(_)) => {
-                        return Err(StationError::Protocol("Joined received twice".into()));
-                    }
-                    Some(server_message::Kind::Event(_)) | None => {}
+                    Received::Event(_) | Received::Error | Received::Nothing => {}
                 },
                 // The session closed before the end of the run.
-                Ok(None) => return Ok(load),
-                Err(status) => return Err(status.into()),
+                None => return Ok(StationLoad::of(instrument.is_some(), intake, &poses)),
             },
             _ = pose_tick.tick(), if instrument.is_some() => {
                 let Some((name, path)) = &instrument else { continue };
                 let t = t0.elapsed().as_secs_f64();
                 let (tip, axis) = path(t);
-                sequence += 1;
-                let message = StationMessage {
-                    kind: Some(station_message::Kind::Pose(v1::DevicePose {
-                        instrument: name.clone(),
-                        pose: Some(wire::to_pose(&tip, &axis)),
-                        device_time_s: t,
-                        sequence,
-                    })),
-                };
-                match outgoing.try_send(message) {
-                    Ok(()) => {
-                        send_times.record(sequence, Instant::now());
-                        load.poses_sent += 1;
-                        counters.poses_sent.fetch_add(1, Ordering::Relaxed);
-                    }
-                    Err(_) => load.poses_dropped += 1,
+                if poses.send(&link.outgoing, name, &tip, &axis, t) == Sent::Queued {
+                    counters.poses_sent.fetch_add(1, Ordering::Relaxed);
                 }
             }
         }
     }
-    let _ = outgoing.try_send(StationMessage {
-        kind: Some(station_message::Kind::Leave(Leave {
-            reason: "load run finished".into(),
-        })),
-    });
-    drop(outgoing);
-    let _ = tokio::time::timeout(LEAVE_GRACE, async {
-        while let Ok(Some(_)) = incoming.message().await {}
-    })
-    .await;
-    Ok(load)
+    link.leave("load run finished".into()).await;
+    Ok(StationLoad::of(instrument.is_some(), intake, &poses))
 }
 
 #[cfg(test)]

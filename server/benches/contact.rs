@@ -4,10 +4,10 @@
 //!
 //! The default scene (liver at 0.19 m held at its upper face and underside, gravity,
 //! 60 Hz implicit ticks) on SOFA's liver and the liver-5k/20k/80k series, settled under
-//! gravity for 1 s, then pressed on its free front (+z) face. The tick is replayed here
-//! as `Simulation::tick` does it — `ContactStage::before_step`, the integrator's step,
-//! `ContactStage::after_step` — so that the contact stage (the two calls) and the
-//! elastic step are timed apart. One core.
+//! gravity for 1 s, then pressed on its free front (+z) face. Each tick is
+//! `Simulation::tick`, timed by its stages (`TickTiming`): the contact stage is
+//! `carry_held_vertices` plus `resolve_contact`, the elastic step is `elastic_step`.
+//! One core.
 //!
 //! Every press moves at 2 cm/s (1 cm per 0.5 s): a few ticks of approach from 2 mm
 //! outside the surface, then, from the first tick the stage moves a vertex, 1 cm
@@ -21,7 +21,10 @@
 //! - shaft: the axis along +x, the tip beyond the liver's −x end, the shaft in front
 //!   of the front face at the front point's height, moved into −z.
 //!
-//! Contact share is median contact / (median contact + median elastic step). Colliding
+//! Each tick's stages are reported as `TickTiming` names them: the contact stage
+//! (`carry_held_vertices` + `resolve_contact`, and each apart), `elastic_step` and
+//! `local_models`. Contact share is median contact / (median contact + median elastic
+//! step). Colliding
 //! edges and candidate triangles per tick are medians of the per-tick deltas of the
 //! stage's counters.
 //!
@@ -42,7 +45,8 @@ use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::StepReport;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::{Simulation, TickTiming};
 use nalgebra::{Point3, Unit, Vector3};
 
 /// Press speed: 1 cm over 0.5 s, in metres per 60 Hz tick.
@@ -57,10 +61,10 @@ const MAX_APPROACH: usize = 300;
 const BUDGET: f64 = 3.0;
 const MAX_REPEATS: usize = 20;
 
-/// One replayed tick: its parts' wall times, s, and the integrator's report.
+/// One tick: its stages' wall times as the simulation records them, the whole tick's,
+/// s, and the integrator's report.
 struct TickTimes {
-    contact: f64,
-    elastic: f64,
+    stages: TickTiming,
     whole: f64,
     step: StepReport,
 }
@@ -71,8 +75,7 @@ fn timed_tick(sim: &mut Simulation) -> TickTimes {
     let step = sim.tick();
     let whole = since(whole);
     TickTimes {
-        contact: sim.last_timing.contact,
-        elastic: sim.last_timing.elastic,
+        stages: sim.last_timing,
         whole,
         step,
     }
@@ -135,8 +138,12 @@ impl Press {
 /// What a timed run measured, per timed tick.
 #[derive(Default)]
 struct Run {
+    /// The contact stage: carrying held vertices plus resolving contact.
     contact: Vec<f64>,
+    carry: Vec<f64>,
+    resolve: Vec<f64>,
     elastic: Vec<f64>,
+    local_models: Vec<f64>,
     whole: Vec<f64>,
     colliding: Vec<f64>,
     candidates: Vec<f64>,
@@ -167,8 +174,11 @@ fn press(sim: &mut Simulation, presses: &mut [Press], label: &str, run: &mut Run
         {
             panic!("{label}: vertex {v} is not finite after run tick {tick}");
         }
-        all.contact.push(t.contact);
-        all.elastic.push(t.elastic);
+        all.contact.push(t.stages.contact());
+        all.carry.push(t.stages.carry_held_vertices);
+        all.resolve.push(t.stages.resolve_contact);
+        all.elastic.push(t.stages.elastic_step);
+        all.local_models.push(t.stages.local_models);
         all.whole.push(t.whole);
         all.colliding
             .push((after.colliding_edges - before.colliding_edges) as f64);
@@ -188,7 +198,11 @@ fn press(sim: &mut Simulation, presses: &mut [Press], label: &str, run: &mut Run
     }
     let first = presses.iter().map(|p| p.contact.unwrap().0).min().unwrap();
     run.contact.extend_from_slice(&all.contact[first..]);
+    run.carry.extend_from_slice(&all.carry[first..]);
+    run.resolve.extend_from_slice(&all.resolve[first..]);
     run.elastic.extend_from_slice(&all.elastic[first..]);
+    run.local_models
+        .extend_from_slice(&all.local_models[first..]);
     run.whole.extend_from_slice(&all.whole[first..]);
     run.colliding.extend_from_slice(&all.colliding[first..]);
     run.candidates.extend_from_slice(&all.candidates[first..]);
@@ -294,9 +308,9 @@ fn main() {
     println!("Contact time per tick against surface size and colliding edges (one instrument)");
     println!();
     println!(
-        "| mesh | surface triangles | gesture | median contact (ms) | median elastic step (ms) | contact share (%) | colliding edges/tick (median / max) | candidate triangles/tick | held at end | ticks timed |"
+        "| mesh | surface triangles | gesture | median contact (ms) | carry held vertices / resolve contact (ms) | median elastic step (ms) | median local models (ms) | contact share (%) | colliding edges/tick (median / max) | candidate triangles/tick | held at end | ticks timed |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in meshes(&["sofa-liver", "liver-5k", "liver-20k", "liver-80k"]) {
         type Gesture = fn(&Simulation) -> Vec<Press>;
         for (name, gesture) in [
@@ -308,6 +322,8 @@ fn main() {
             let (mut run, sim, repeats) = repeat(&case.file, &label, gesture);
             let contact = ms(&mut run.contact);
             let elastic = ms(&mut run.elastic);
+            let (carry, resolve) = (ms(&mut run.carry), ms(&mut run.resolve));
+            let local_models = ms(&mut run.local_models);
             if run.unconverged > 0 {
                 notes.push(format!(
                     "{label}: CG hit its iteration cap on {} ticks",
@@ -315,11 +331,14 @@ fn main() {
                 ));
             }
             println!(
-                "| {} | {} | {name} | {:.4} | {:.3} | {:.1} | {:.0} / {:.0} | {:.0} | {} | {} × {} |",
+                "| {} | {} | {name} | {:.4} | {:.4} / {:.4} | {:.3} | {:.4} | {:.1} | {:.0} / {:.0} | {:.0} | {} | {} × {} |",
                 case.label,
                 sim.mesh.surface.triangles.len(),
                 contact,
+                carry,
+                resolve,
                 elastic,
+                local_models,
                 100.0 * contact / (contact + elastic),
                 median(&mut run.colliding),
                 run.colliding.iter().cloned().fold(0.0, f64::max),

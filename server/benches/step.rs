@@ -8,7 +8,10 @@
 //! gravity transient, the busiest part of the run for CG. Then, where the budget
 //! allows (meshes up to liver-20k), the run continues to 2 s simulated and 30 ticks are
 //! timed at rest. One core. Reports median tick times, ticks per second, substeps or
-//! CG iterations per tick (median), and the memory the model and integrator hold.
+//! CG iterations per tick (median), the memory the model and integrator hold, and the
+//! median of each stage of the transient ticks as `TickTiming` names them
+//! (`carry_held_vertices`, `elastic_step`, `resolve_contact`, `local_models`; the
+//! instruments stay out of the body, so the contact stages do almost nothing).
 
 mod common;
 
@@ -26,9 +29,9 @@ fn main() {
         "liver-300k",
     ];
     println!(
-        "| mesh | vertices | tets | integrator | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | median tick at rest (ms) | ticks/s at rest | memory (MB) | ticks timed |"
+        "| mesh | vertices | tets | integrator | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | median tick at rest (ms) | ticks/s at rest | memory (MB) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in meshes(&labels) {
         for integrator in [IntegratorKind::Explicit, IntegratorKind::Implicit] {
             let scene = scene(&case.file, integrator, 1e-4);
@@ -38,6 +41,7 @@ fn main() {
                 + 3 * 24 * sim.mesh.vertex_count();
             // Time up to 60 ticks (1 s simulated) or about 8 s of wall time.
             let (mut times, mut substeps, mut cg) = (Vec::new(), Vec::new(), Vec::new());
+            let mut stages: [Vec<f64>; 4] = Default::default();
             let budget = Instant::now();
             while times.len() < 60 && (times.len() < 3 || since(budget) < 8.0) {
                 let t = Instant::now();
@@ -45,6 +49,16 @@ fn main() {
                 times.push(since(t));
                 substeps.push(r.substeps as f64);
                 cg.push(r.cg_iterations as f64);
+                let t = sim.last_timing;
+                let parts = [
+                    t.carry_held_vertices,
+                    t.elastic_step,
+                    t.resolve_contact,
+                    t.local_models,
+                ];
+                for (stage, part) in stages.iter_mut().zip(parts) {
+                    stage.push(part);
+                }
             }
             let n = times.len();
             let tick = median(&mut times);
@@ -64,8 +78,9 @@ fn main() {
             } else {
                 "— | —".to_string()
             };
+            let [carry, elastic, resolve, local] = stages.map(|mut v| median(&mut v) * 1e3);
             println!(
-                "| {} | {} | {} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {} |",
+                "| {} | {} | {} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
                 case.label,
                 sim.mesh.vertex_count(),
                 sim.mesh.tets.len(),

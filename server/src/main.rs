@@ -74,7 +74,12 @@ fn idle_seconds(s: &str) -> Result<f64, String> {
 /// Serves until SIGINT or SIGTERM.
 fn serve(args: ServeArgs) -> Result<(), String> {
     use laparo_server::service::{PoseLimits, ServeConfig, TlsFiles, Tokens, serve};
-    let tokens = args.tokens.as_deref().map(Tokens::load).transpose()?;
+    let tokens = args
+        .tokens
+        .as_deref()
+        .map(Tokens::load)
+        .transpose()
+        .map_err(|e| e.to_string())?;
     let config = ServeConfig {
         scene_dir: args.scene_dir,
         tokens,

@@ -6,7 +6,8 @@ mod common;
 use common::contact::*;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 
 #[test]
 fn tip_press_deforms_holds_and_releases() {

@@ -5,7 +5,8 @@ mod common;
 
 use common::contact::*;
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Vector3};
 
 fn settled(scene: Scene) -> Simulation {

@@ -13,7 +13,8 @@ mod common;
 use common::contact::{check_invariants, pose};
 use laparo_server::engine::mesh::TetMesh;
 use laparo_server::engine::mesh::generate::kuhn_box;
-use laparo_server::engine::scene::{BoxSpec, Scene, Simulation};
+use laparo_server::engine::scene::{BoxSpec, Scene};
+use laparo_server::engine::simulation::Simulation;
 use nalgebra::Point3;
 use proptest::prelude::*;
 

@@ -5,7 +5,8 @@
 mod common;
 
 use common::contact::*;
-use laparo_server::engine::scene::{ForceModelKind, Scene};
+use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::scene::Scene;
 use nalgebra::Vector3;
 
 /// What a tip press into the front of the default liver gave.

@@ -13,12 +13,14 @@
 
 use std::time::{Duration, Instant};
 
+use laparo_client::gestures::{PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::scene::{ForceModelKind, Scene, Simulation};
-use laparo_tests::coupled::Coupled;
-use laparo_tests::gestures::{PROBE_SECONDS, Probe};
+use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
+use laparo_tests::coupled::{Coupled, front_probe};
 use nalgebra::{Point3, Unit, Vector3};
 
 const HAPTIC_HZ: f64 = 1000.0;
@@ -147,7 +149,7 @@ fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
     }
-    let probe = Probe::on_front(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
+    let probe = front_probe(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
     let truth = reference(&probe);
     let peak = truth.iter().map(|f| f.norm()).fold(0.0, f64::max);
     let rms_truth =

@@ -19,12 +19,13 @@ use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use laparo_client::gestures::PROBE_SECONDS;
 use laparo_proto::force::wire::to_pose;
 use laparo_proto::v1;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::scene::Scene;
 use laparo_server::session::{PoseIn, Session, SessionConfig};
-use laparo_tests::gestures::{PROBE_SECONDS, Probe};
+use laparo_tests::coupled::front_probe;
 
 fn shared_mesh(label: &str) -> Option<PathBuf> {
     let dir = std::env::var_os("LAPARO_MESH_DIR")
@@ -97,7 +98,7 @@ fn run(label: &'static str, scene: Scene, seconds: f64) -> Row {
     )
     .expect("the scene builds");
     let sim = scene.build().expect("the scene builds");
-    let probe = Probe::on_front(&sim, 0.008, 0.02);
+    let probe = front_probe(&sim, 0.008, 0.02);
     let name = sim.instruments[0].name.clone();
     let rate_hz = scene.mechanics.rate_hz;
     let surface_vertices = sim.mesh.surface.vertices.len();

@@ -2,9 +2,10 @@
 
 use std::time::Instant;
 
+use laparo_client::gestures::Probe;
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, HapticDevice, ModelInbox, PoseOutbox};
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::scene::Simulation;
+use laparo_server::engine::simulation::Simulation;
 
 /// Instrument 0 of `sim` driven by a force loop's device.
 ///
@@ -100,4 +101,17 @@ impl<D: HapticDevice> Coupled<D> {
             self.step();
         }
     }
+}
+
+/// A [`Probe`] of the front face of `sim`'s liver (as it is now) near its middle, by
+/// instrument 0: `depth` past the surface, `slide` sideways, m.
+pub fn front_probe(sim: &Simulation, depth: f64, slide: f64) -> Probe {
+    let surface = sim
+        .mesh
+        .surface
+        .vertices
+        .iter()
+        .map(|&v| sim.state.x[v as usize]);
+    Probe::on_front(surface, sim.instruments[0].trocar, depth, slide)
+        .expect("the default liver has a front face")
 }

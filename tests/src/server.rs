@@ -12,6 +12,9 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::transport::Channel;
 use tonic::{Request, Status, Streaming};
 
+/// How long a test waits for something a server should do in well under a second.
+pub const WAIT: Duration = Duration::from_secs(20);
+
 /// A server serving on `127.0.0.1:<free port>` in this runtime.
 pub struct TestServer {
     pub addr: SocketAddr,

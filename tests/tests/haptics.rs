@@ -2,11 +2,13 @@
 //! change per haptic tick across many model updates, and the closed loop of a
 //! simulated hand, the device and stiff tissue.
 
+use laparo_client::gestures::PROBE_SECONDS;
 use laparo_client::haptics::blend::SMOOTHSTEP_MAX_SLOPE;
 use laparo_client::haptics::{HandDevice, HandParams, ScriptedDevice};
-use laparo_server::engine::scene::{ForceModelKind, Scene, Simulation};
-use laparo_tests::coupled::Coupled;
-use laparo_tests::gestures::{PROBE_SECONDS, Probe};
+use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
+use laparo_tests::coupled::{Coupled, front_probe};
 
 const HAPTIC_HZ: f64 = 1000.0;
 
@@ -40,7 +42,7 @@ fn settled(e: f64, rate_hz: f64, kind: ForceModelKind) -> Simulation {
 fn force_change_per_haptic_tick_is_bounded_while_probing() {
     for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
         let sim = settled(4500.0, 60.0, kind);
-        let probe = Probe::on_front(&sim, 0.008, 0.02);
+        let probe = front_probe(&sim, 0.008, 0.02);
         let ticks = (PROBE_SECONDS * HAPTIC_HZ) as usize;
         let device = ScriptedDevice::new(probe.trajectory(), 1e3, 1);
         let mut c = Coupled::new(sim, device, HAPTIC_HZ);
@@ -97,7 +99,7 @@ struct HandRun {
 /// `depth` past its surface over 1 s, then holds the target for 2 s.
 fn hand_on_liver(e: f64, kind: ForceModelKind, max_force: f64, depth: f64) -> HandRun {
     let sim = settled(e, 60.0, kind);
-    let probe = Probe::on_front(&sim, depth, 0.0);
+    let probe = front_probe(&sim, depth, 0.0);
     let params = HandParams {
         max_force,
         ..HandParams::default()

@@ -6,8 +6,9 @@ use std::time::Instant;
 
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::mesh::read_gmsh_file;
+use laparo_server::engine::scene::Scene;
 use laparo_server::engine::scene::limits::max_cg_iterations;
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::simulation::Simulation;
 
 /// A mesh of the scaling series: its label and where to find it.
 pub struct MeshCase {

@@ -2,8 +2,10 @@
 //!
 //! Stages: [`mesh`] (loading and topology), [`material`], [`elastic`] (tensor-mass
 //! stiffness), [`integrate`] (explicit, implicit, static), [`contact`] (paper §2),
-//! [`local_model`] (reaction forces, paper §3), [`scene`] (what a scene declares, and
-//! building only that).
+//! [`local_model`] (reaction forces, paper §3), [`scene`] (what a scene declares),
+//! [`simulation`] (a scene built, and its tick: the stages in order).
+//!
+//! Each stage imports only the stages before it in that list.
 
 pub mod contact;
 pub mod elastic;
@@ -12,6 +14,7 @@ pub mod local_model;
 pub mod material;
 pub mod mesh;
 pub mod scene;
+pub mod simulation;
 
 #[cfg(test)]
 pub(crate) mod testing;

@@ -10,7 +10,7 @@ use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
 use crate::engine::elastic::{shape_gradients, tet_displacements, von_mises_stress};
-use crate::engine::scene::Simulation;
+use crate::engine::simulation::Simulation;
 
 /// VTK's cell type for a linear tetrahedron.
 const VTK_TETRA: u8 = 10;

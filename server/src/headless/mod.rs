@@ -5,7 +5,7 @@ pub mod trajectory;
 use std::time::{Duration, Instant};
 
 use crate::engine::integrate::StepReport;
-use crate::engine::scene::Simulation;
+use crate::engine::simulation::Simulation;
 
 /// What a headless run did, with its timing.
 #[derive(Clone, Debug)]

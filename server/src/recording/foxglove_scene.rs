@@ -32,7 +32,7 @@ use laparo_proto::force::wire::pose;
 use laparo_proto::v1;
 use nalgebra::{Unit, UnitQuaternion};
 
-use crate::session::Frame;
+use crate::frame::Frame;
 
 /// Frame of every entity: the scene's world frame.
 pub const FRAME_ID: &str = "world";

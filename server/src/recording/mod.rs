@@ -62,9 +62,11 @@ pub mod writer;
 
 pub use list::{FileState, Listed, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
-pub use recorder::{Item, Recorder, RecorderStats, Report};
+pub use recorder::{Item, Recorder, RecorderError, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};
-pub use resim::{ResimError, ResimReport, Resimulation, Resimulator, resimulate, resimulate_as};
+pub use resim::{
+    ResimError, ResimReport, Resimulation, Resimulator, Stepped, resimulate, resimulate_as,
+};
 pub use summary::{InstrumentSummary, RecordingSummary, summarize};
 pub use writer::{McapSink, SessionHeader};
 

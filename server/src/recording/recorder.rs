@@ -23,7 +23,7 @@ use std::time::{Instant, SystemTime};
 use laparo_proto::v1;
 
 use super::writer::{FLUSH_INTERVAL, McapSink, SessionHeader};
-use crate::session::Frame;
+use crate::frame::Frame;
 
 /// Items the channel holds: several seconds of ticks and poses at the rates a scene
 /// and a station reach; a tick's frame is an `Arc`, so a full channel is small.
@@ -100,6 +100,18 @@ impl Report {
     }
 }
 
+/// What stopped a recorder; each names the file and the cause (an MCAP I/O error
+/// with its sources, so that a full disk says so).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RecorderError {
+    #[error("cannot create {}: {cause}", path.display())]
+    Create { path: PathBuf, cause: String },
+    #[error("cannot write {}: {cause}", path.display())]
+    Write { path: PathBuf, cause: String },
+    #[error("cannot finish {}: {cause}", path.display())]
+    Finish { path: PathBuf, cause: String },
+}
+
 /// Counters of a recorder, readable while it runs.
 #[derive(Debug, Default)]
 pub struct RecorderStats {
@@ -124,7 +136,7 @@ pub struct RecorderStats {
 #[derive(Debug, Default)]
 struct Shared {
     stats: RecorderStats,
-    error: Mutex<Option<String>>,
+    error: Mutex<Option<RecorderError>>,
     /// Whether the file was created.
     created: AtomicBool,
     /// Whether the thread has ended: the file is finished, or failed.
@@ -275,8 +287,13 @@ impl Recorder {
         out
     }
 
-    /// The error that stopped the recorder, if any.
+    /// The error that stopped the recorder, if any, as clients are told it.
     pub fn error(&self) -> Option<String> {
+        self.failure().map(|e| e.to_string())
+    }
+
+    /// The error that stopped the recorder, if any.
+    pub fn failure(&self) -> Option<RecorderError> {
         self.shared
             .error
             .lock()
@@ -287,7 +304,7 @@ impl Recorder {
     /// Writes what the channel holds, then the file's summary and footer, and waits
     /// for the thread. Later offers are ignored. Idempotent. Returns the error that
     /// stopped the recorder, if any.
-    pub fn finish(&self) -> Result<(), String> {
+    pub fn finish(&self) -> Result<(), RecorderError> {
         if !self.finished.swap(true, Ordering::Relaxed) {
             // Waits while the channel is full: closing is not on the tick's path.
             let _ = self.tx.send(Msg::Finish);
@@ -296,7 +313,7 @@ impl Recorder {
         if let Some(t) = thread {
             let _ = t.join();
         }
-        self.error().map_or(Ok(()), Err)
+        self.failure().map_or(Ok(()), Err)
     }
 }
 
@@ -324,15 +341,18 @@ pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
 /// The thread: create the file, write items as they come, close a chunk at least
 /// every [`FLUSH_INTERVAL`], finish on [`Msg::Finish`] or when the sender is gone.
 fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared) {
-    let fail = |what: &str, e: &dyn std::error::Error| {
-        let message = format!("{what} {}: {}", path.display(), with_causes(e));
-        tracing::error!(session = %header.session_id, "recorder: {message}");
+    let fail = |error: fn(PathBuf, String) -> RecorderError, e: &dyn std::error::Error| {
+        let error = error(path.to_path_buf(), with_causes(e));
+        tracing::error!(session = %header.session_id, "recorder: {error}");
         shared.stats.errors.fetch_add(1, Ordering::Relaxed);
-        *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(message);
+        *shared.error.lock().unwrap_or_else(|e| e.into_inner()) = Some(error);
     };
+    let create = |path, cause| RecorderError::Create { path, cause };
+    let write = |path, cause| RecorderError::Write { path, cause };
+    let finish = |path, cause| RecorderError::Finish { path, cause };
     let mut sink = match McapSink::create(path, header) {
         Ok(sink) => sink,
-        Err(e) => return fail("cannot create", &e),
+        Err(e) => return fail(create, &e),
     };
     shared.created.store(true, Ordering::Relaxed);
     let mut seen_dropped = 0;
@@ -385,7 +405,7 @@ fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared)
             .written
             .fetch_add(sink.messages - written, Ordering::Relaxed);
         if let Err(e) = result {
-            return fail("cannot write", &e);
+            return fail(write, &e);
         }
     }
     let result = sink.finish().and_then(|w: BufWriter<File>| {
@@ -394,6 +414,6 @@ fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared)
         Ok(())
     });
     if let Err(e) = result {
-        fail("cannot finish", &e);
+        fail(finish, &e);
     }
 }

@@ -28,8 +28,10 @@ use nalgebra::{Point3, Unit, Vector3};
 
 use super::reader::{ReadError, Recorded, Recording, RecordingMeta};
 use crate::engine::contact::InstrumentPose;
-use crate::engine::scene::{Scene, SceneError, Simulation};
-use crate::session::describe::surface_positions;
+use crate::engine::scene::{Scene, SceneError};
+use crate::engine::simulation::Simulation;
+use crate::frame::state::surface_positions;
+use crate::frame::{Frame, Holder, TickOutputs};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ResimError {
@@ -238,14 +240,14 @@ pub fn resimulate_as(
         let Recorded::Surface(surface) = m?.message else {
             continue;
         };
-        run.run_to(surface.tick, |sim, recorded| {
+        run.run_to(surface.tick, |stepped| {
             report.steps += 1;
-            if recorded.is_empty() {
+            if stepped.recorded.is_empty() {
                 report.missing_ticks += 1;
-                report.first_missing_tick.get_or_insert(sim.tick);
+                report.first_missing_tick.get_or_insert(stepped.frame.tick);
             }
-            if sim.tick == surface.tick {
-                compare(sim, &surface, recorded, &mut report);
+            if stepped.frame.tick == surface.tick {
+                compare(&stepped, &surface, &mut report);
             }
             true
         })?;
@@ -264,6 +266,18 @@ pub struct Resimulation {
     /// a force per instrument and tick); the surfaces are not, and callers stream
     /// them.
     states: BTreeMap<u64, Vec<v1::InstrumentState>>,
+    /// Each step's events and frame, made as the live session made them.
+    outputs: TickOutputs,
+}
+
+/// One re-simulated tick: the states recorded for it (empty for a tick the recorder
+/// lost), then what the step gives, made as a live session makes it
+/// ([`TickOutputs::produce`]): its contact events and its frame, with each
+/// instrument's holder as recorded.
+pub struct Stepped<'a> {
+    pub recorded: &'a [v1::InstrumentState],
+    pub events: Vec<v1::Event>,
+    pub frame: Frame,
 }
 
 impl Resimulation {
@@ -284,7 +298,12 @@ impl Resimulation {
         for s in recording.instrument_states()? {
             states.entry(s.message.tick).or_default().push(s.message);
         }
-        Ok(Resimulation { resim, states })
+        let outputs = TickOutputs::new(resim.sim.instruments.len());
+        Ok(Resimulation {
+            resim,
+            states,
+            outputs,
+        })
     }
 
     pub fn sim(&self) -> &Simulation {
@@ -293,14 +312,13 @@ impl Resimulation {
 
     /// Steps up to and including tick `tick`, each step with the poses recorded for
     /// it; a tick the recorder lost (no states) holds the previous poses. `each`
-    /// sees the simulation after every step with the states recorded for that tick
-    /// (empty for a lost one), and stops the run by answering `false`, which this
-    /// then returns. A tick at or before the current one is an error: the file's
-    /// ticks go backwards.
+    /// sees every step's outputs ([`Stepped`]), and stops the run by answering
+    /// `false`, which this then returns. A tick at or before the current one is an
+    /// error: the file's ticks go backwards.
     pub fn run_to(
         &mut self,
         tick: u64,
-        mut each: impl FnMut(&Simulation, &[v1::InstrumentState]) -> bool,
+        mut each: impl FnMut(Stepped<'_>) -> bool,
     ) -> Result<bool, ResimError> {
         if tick <= self.resim.sim.tick {
             return Err(ResimError::OutOfOrder {
@@ -312,7 +330,25 @@ impl Resimulation {
             let next = self.resim.sim.tick + 1;
             let recorded = self.states.remove(&next).unwrap_or_default();
             self.resim.step(&recorded)?;
-            if !each(&self.resim.sim, &recorded) {
+            let sim = &self.resim.sim;
+            let holder = |k: usize| {
+                let name = &sim.instruments[k].name;
+                recorded
+                    .iter()
+                    .find(|s| &s.instrument == name)
+                    .map_or_else(Holder::default, |s| Holder {
+                        station: s.station_id,
+                        pose_sequence: s.pose_sequence,
+                    })
+            };
+            let mut events = Vec::new();
+            let frame = self.outputs.produce(sim, holder, |e| events.push(e));
+            let stepped = Stepped {
+                recorded: &recorded,
+                events,
+                frame,
+            };
+            if !each(stepped) {
                 return Ok(false);
             }
         }
@@ -320,17 +356,13 @@ impl Resimulation {
     }
 }
 
-/// Adds one tick's differences to the report.
-fn compare(
-    sim: &Simulation,
-    surface: &v1::SurfaceFrame,
-    states: &[v1::InstrumentState],
-    report: &mut ResimReport,
-) {
+/// Adds one tick's differences to the report: the recorded `surface` and the
+/// states recorded for the tick against the re-simulated frame.
+fn compare(stepped: &Stepped<'_>, surface: &v1::SurfaceFrame, report: &mut ResimReport) {
     report.ticks_compared += 1;
-    let now = surface_positions(sim);
+    let now = &stepped.frame.surface;
     let d = if now.len() == surface.positions.len() {
-        max_abs_diff(&now, &surface.positions)
+        max_abs_diff(now, &surface.positions)
     } else {
         f64::INFINITY
     };
@@ -338,11 +370,11 @@ fn compare(
         report.max_surface_deviation_m = d;
         report.worst_surface_tick = Some(surface.tick);
     }
-    for s in states {
-        let Some(k) = sim.instruments.iter().position(|i| i.name == s.instrument) else {
+    for s in stepped.recorded {
+        let instruments = &stepped.frame.instruments;
+        let Some(again) = instruments.iter().find(|i| i.instrument == s.instrument) else {
             continue;
         };
-        let again = crate::session::describe::instrument_state(sim, k, None, None);
         let f = |s: &v1::InstrumentState| {
             s.force
                 .as_ref()
@@ -350,7 +382,7 @@ fn compare(
                 .map(|v| Vector3::new(v.x, v.y, v.z))
                 .unwrap_or_else(Vector3::zeros)
         };
-        let df = (f(s) - f(&again)).norm();
+        let df = (f(s) - f(again)).norm();
         report.max_force_deviation_n = report.max_force_deviation_n.max(df);
         if s.held_vertex_count != again.held_vertex_count || s.contact != again.contact {
             report.contact_mismatches += 1;

@@ -24,7 +24,7 @@ use super::{
     SCHEMA_SURFACE, TOPIC_EVENTS, TOPIC_FOXGLOVE_SCENE, TOPIC_INSTRUMENTS, TOPIC_POSES,
     TOPIC_SCENE, TOPIC_SURFACE, sim_log_time, unix_ns,
 };
-use crate::session::Frame;
+use crate::frame::Frame;
 
 /// Longest a written message stays in an open chunk: past this the chunk is closed
 /// and flushed to the file. Half the one second a crash may lose, so that a busy

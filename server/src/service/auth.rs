@@ -21,7 +21,7 @@
 //! still being made is a live session, which only an instructor may watch.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use serde::Deserialize;
@@ -90,6 +90,32 @@ struct TokenEntry {
     instruments: Option<Vec<String>>,
 }
 
+/// What is wrong with a list of tokens; `tokens[k]` counts entries from 0.
+#[derive(Debug, thiserror::Error)]
+pub enum TokenListError {
+    #[error("{0}")]
+    Toml(#[from] toml::de::Error),
+    #[error("tokens[{index}].token: at least 8 characters")]
+    TooShort { index: usize },
+    #[error("tokens[{index}].token: listed twice")]
+    Twice { index: usize },
+}
+
+/// A tokens file that cannot be used; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum TokensError {
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Invalid {
+        path: PathBuf,
+        source: TokenListError,
+    },
+}
+
 /// The tokens a server accepts.
 #[derive(Clone, Debug, Default)]
 pub struct Tokens {
@@ -98,17 +124,25 @@ pub struct Tokens {
 
 impl Tokens {
     /// Reads a tokens file; errors name the file and what is wrong.
-    pub fn load(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    pub fn load(path: &Path) -> Result<Self, TokensError> {
+        let text = std::fs::read_to_string(path).map_err(|source| TokensError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text).map_err(|source| TokensError::Invalid {
+            path: path.to_path_buf(),
+            source,
+        })
     }
 
-    pub fn parse(text: &str) -> Result<Self, String> {
-        let file: TokensFile = toml::from_str(text).map_err(|e| e.to_string())?;
+    /// Reads the text of a tokens file: every token at least 8 characters and
+    /// listed once.
+    pub fn parse(text: &str) -> Result<Self, TokenListError> {
+        let file: TokensFile = toml::from_str(text)?;
         let mut by_token = HashMap::new();
         for (k, t) in file.tokens.into_iter().enumerate() {
             if t.token.len() < 8 {
-                return Err(format!("tokens[{k}].token: at least 8 characters"));
+                return Err(TokenListError::TooShort { index: k });
             }
             let caller = Caller {
                 name: t.name.unwrap_or_else(|| format!("tokens[{k}]")),
@@ -116,7 +150,7 @@ impl Tokens {
                 instruments: t.instruments,
             };
             if by_token.insert(t.token, caller).is_some() {
-                return Err(format!("tokens[{k}].token: listed twice"));
+                return Err(TokenListError::Twice { index: k });
             }
         }
         Ok(Tokens { by_token })

@@ -9,7 +9,9 @@
 //! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
 
 pub mod auth;
+pub mod catalog;
 pub mod observe;
+pub mod read_status;
 pub mod recordings;
 pub mod registry;
 pub mod replay;
@@ -31,8 +33,9 @@ use tokio_stream::wrappers::TcpListenerStream;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Identity, Server, ServerTlsConfig};
 
-pub use auth::{Caller, Role, Tokens};
-pub use registry::{Registry, SceneCatalog};
+pub use auth::{Caller, Role, TokenListError, Tokens, TokensError};
+pub use catalog::{CatalogError, SceneCatalog};
+pub use registry::Registry;
 pub use station::PoseLimits;
 
 /// Largest message a client may send, bytes: poses and requests are well under a
@@ -69,7 +72,9 @@ pub struct ServeConfig {
 #[derive(Debug, Error)]
 pub enum ServeError {
     #[error("scenes: {0}")]
-    Scenes(String),
+    Scenes(#[from] CatalogError),
+    #[error("reflection: {0}")]
+    Reflection(#[from] tonic_reflection::server::Error),
     #[error("TLS: {0}")]
     Tls(String),
     #[error(
@@ -94,7 +99,7 @@ pub async fn serve(
     if !addr.ip().is_loopback() && !secured && !config.insecure {
         return Err(ServeError::Insecure(addr));
     }
-    let catalog = SceneCatalog::load(config.scene_dir.as_deref()).map_err(ServeError::Scenes)?;
+    let catalog = SceneCatalog::load(config.scene_dir.as_deref())?;
     if let Some(dir) = &config.recordings
         && let Err(e) = std::fs::create_dir_all(dir)
     {
@@ -111,13 +116,11 @@ pub async fn serve(
     let reflection_v1 = tonic_reflection::server::Builder::configure()
         .register_encoded_file_descriptor_set(laparo_proto::FILE_DESCRIPTOR_SET)
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-        .build_v1()
-        .map_err(|e| ServeError::Scenes(format!("reflection: {e}")))?;
+        .build_v1()?;
     let reflection_v1alpha = tonic_reflection::server::Builder::configure()
         .register_encoded_file_descriptor_set(laparo_proto::FILE_DESCRIPTOR_SET)
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-        .build_v1alpha()
-        .map_err(|e| ServeError::Scenes(format!("reflection: {e}")))?;
+        .build_v1alpha()?;
     let (health_reporter, health) = tonic_health::server::health_reporter();
 
     macro_rules! service {

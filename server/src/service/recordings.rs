@@ -38,6 +38,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::{Caller, Role, caller};
+use super::read_status::read_status;
 use super::registry::Registry;
 use super::replay::{pace, read_recorded, read_resimulated};
 use super::stream::OUTBOUND;
@@ -126,21 +127,6 @@ pub fn file_name(name: &str) -> Result<&str, Status> {
         return bad("recordings are `.mcap` files");
     }
     Ok(name)
-}
-
-/// The status a recording that cannot be read gets (the error names the file).
-pub fn read_status(name: &str, e: &ReadError) -> Status {
-    match e {
-        ReadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-            Status::not_found(format!("no recording `{name}`"))
-        }
-        ReadError::Corrupt { .. } | ReadError::Decode { .. } => Status::data_loss(e.to_string()),
-        ReadError::Io { .. }
-        | ReadError::NotMcap { .. }
-        | ReadError::Truncated { .. }
-        | ReadError::NotARecording { .. }
-        | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(e.to_string()),
-    }
 }
 
 impl RecordingsService {

@@ -6,74 +6,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::Duration;
 
-use laparo_proto::v1;
 use tokio::sync::watch;
 use tonic::Status;
 
-use crate::engine::scene::Scene;
+use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
-use crate::session::{Session, SessionConfig};
-
-/// The embedded default scene and the `.toml` files of a directory, by name.
-#[derive(Debug, Default)]
-pub struct SceneCatalog {
-    pub scenes: BTreeMap<String, Scene>,
-    /// Files of the directory that are not offered, and why: they do not read or
-    /// parse (regular files of at most `MAX_SCENE_BYTES`, inside the directory), or
-    /// repeat a name already offered. `ListScenes` reports them beside the scenes.
-    pub unavailable: Vec<v1::SceneProblem>,
-}
-
-impl SceneCatalog {
-    /// The default scene, and every `*.toml` in `dir`, in file-name order. A file that
-    /// does not load is left out, logged and kept in [`unavailable`](Self::unavailable),
-    /// so that one broken file neither hides the others nor stops the server; a name
-    /// already offered (by the default scene or an earlier file) keeps the first, with
-    /// a warning naming both files. Only an unreadable directory is an error.
-    pub fn load(dir: Option<&Path>) -> Result<Self, String> {
-        let mut catalog = SceneCatalog::default();
-        let default = Scene::default_scene();
-        catalog.scenes.insert(default.name.clone(), default);
-        let Some(dir) = dir else {
-            return Ok(catalog);
-        };
-        let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        let mut files: Vec<PathBuf> = entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-            .collect();
-        files.sort();
-        for f in files {
-            let file = f
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            let problem = match Scene::load_served(&f, dir) {
-                Ok(scene) => match catalog.scenes.get(&scene.name) {
-                    None => {
-                        catalog.scenes.insert(scene.name.clone(), scene);
-                        continue;
-                    }
-                    Some(first) => v1::SceneProblem {
-                        error: format!(
-                            "a scene named `{}` is already offered by {}; keeping that one",
-                            scene.name, first.source
-                        ),
-                        name: scene.name,
-                        file,
-                    },
-                },
-                Err(e) => v1::SceneProblem {
-                    name: String::new(),
-                    file,
-                    error: e.to_string(),
-                },
-            };
-            tracing::warn!(file = %f.display(), "scene not offered: {}", problem.error);
-            catalog.unavailable.push(problem);
-        }
-        Ok(catalog)
-    }
-}
+use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// Every session of the server.
 pub struct Registry {
@@ -86,8 +24,8 @@ pub struct Registry {
     pub recordings: Option<PathBuf>,
     /// The recorders of this server's sessions, until their files are finished.
     recorders: Mutex<Vec<Weak<Recorder>>>,
-    /// `Some(reason)` once the server is shutting down.
-    shutdown: watch::Sender<Option<String>>,
+    /// Whether the server is shutting down, and why.
+    shutdown: Closing,
 }
 
 impl Registry {
@@ -103,7 +41,7 @@ impl Registry {
             idle_timeout,
             recordings,
             recorders: Mutex::new(Vec::new()),
-            shutdown: watch::channel(None).0,
+            shutdown: Closing::new(),
         }
     }
 
@@ -130,7 +68,7 @@ impl Registry {
 
     /// Resolves to the reason once the server is shutting down.
     pub fn shutting_down(&self) -> watch::Receiver<Option<String>> {
-        self.shutdown.subscribe()
+        self.shutdown.watch()
     }
 
     fn map(&self) -> MutexGuard<'_, BTreeMap<String, Arc<Session>>> {
@@ -160,8 +98,15 @@ impl Registry {
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
         let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))
-            .map_err(|e| {
-                Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+            .map_err(|e| match e {
+                SessionError::Scene(e) => {
+                    Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+                }
+                // Out of threads or memory: the server, not the scene, is at fault,
+                // and a later try may succeed.
+                SessionError::Spawn { .. } => {
+                    Status::unavailable(format!("cannot start a session of scene `{name}`: {e}"))
+                }
             })?;
         if let Some(recorder) = session.recorder_weak() {
             let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
@@ -208,7 +153,7 @@ impl Registry {
     /// Closes every session (shutdown) and waits for their mechanics threads;
     /// streams not tied to a session (replays) end too.
     pub fn close_all(&self, reason: &str) {
-        self.shutdown.send_replace(Some(reason.to_string()));
+        self.shutdown.close(reason);
         let all: Vec<_> = std::mem::take(&mut *self.map()).into_values().collect();
         for s in &all {
             s.close(reason);

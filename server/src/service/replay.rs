@@ -8,7 +8,9 @@
 //!   scene ([`crate::recording::Resimulation`]), sending the new frames and
 //!   instrument states, the contact events they give, and the recorded events that
 //!   do not come from the physics (stations joining and leaving, rejected input,
-//!   the recorder's reports). With the same build and scene it sends what
+//!   the recorder's reports). Each tick's messages are made by
+//!   [`crate::frame::TickOutputs`], as the live session made them, and sent in the
+//!   order the session wrote them. With the same build and scene it sends what
 //!   `read_recorded` sends; with another it shows what would have happened.
 //!
 //! Both start at an offset the same way ([`FromOffset`]).
@@ -20,10 +22,10 @@ use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
 use tonic::Status;
 
-use super::recordings::read_status;
+use super::read_status::read_status;
 use super::stream::{Item, Wrap};
 use crate::recording::{Recorded, Recording, ResimError, Resimulation};
-use crate::session::describe::{ContactWatch, instrument_state, surface_positions};
+use crate::session::closing::closed;
 
 /// A message to send at `at_s` of simulated time after the replay's start offset.
 pub struct Timed {
@@ -156,7 +158,6 @@ pub fn read_resimulated(
         Ok(run) => run,
         Err(e) => return out.fail(cannot(e)),
     };
-    let mut contacts = ContactWatch::new(run.sim().instruments.len());
     let mut gate = FromOffset::new(offset);
     for m in recording.messages() {
         let m = match m {
@@ -173,35 +174,20 @@ pub fn read_resimulated(
             Recorded::Surface(f) => f.tick,
             _ => continue,
         };
-        let sent = run.run_to(tick, |sim, recorded| {
-            let held_by = |k: usize| {
-                let name = &sim.instruments[k].name;
-                recorded.iter().find(|s| &s.instrument == name)
-            };
+        let sent = run.run_to(tick, |stepped| {
             // The order a session writes a tick in: its contact events, then the
             // surface and every instrument's state.
-            let mut items = Vec::new();
-            contacts.update(
-                sim,
-                |k| held_by(k).and_then(|r| r.station_id),
-                |e| items.push(Item::Event(e)),
-            );
-            items.push(Item::Surface(v1::SurfaceFrame {
-                tick: sim.tick,
-                sim_time_s: sim.time,
-                positions: surface_positions(sim),
-            }));
-            for k in 0..sim.instruments.len() {
-                let r = held_by(k);
-                items.push(Item::State(instrument_state(
-                    sim,
-                    k,
-                    r.and_then(|r| r.station_id),
-                    r.and_then(|r| r.pose_sequence),
-                )));
-            }
-            let t = sim.time;
-            items.into_iter().all(|item| gate.pass(t, item, &out))
+            let frame = stepped.frame;
+            let t = frame.sim_time;
+            let surface = v1::SurfaceFrame {
+                tick: frame.tick,
+                sim_time_s: frame.sim_time,
+                positions: frame.surface,
+            };
+            let mut items = (stepped.events.into_iter().map(Item::Event))
+                .chain([Item::Surface(surface)])
+                .chain(frame.instruments.into_iter().map(Item::State));
+            items.all(|item| gate.pass(t, item, &out))
         });
         match sent {
             Ok(true) => {}
@@ -210,19 +196,6 @@ pub fn read_resimulated(
         }
     }
     gate.flush(&out);
-}
-
-/// Resolves with the reason once the server shuts down.
-async fn shut_down(shutdown: &mut watch::Receiver<Option<String>>) -> String {
-    let reason = match shutdown.wait_for(Option::is_some).await {
-        Ok(reason) => reason.clone(),
-        Err(_) => None,
-    };
-    match reason {
-        Some(reason) => reason,
-        // The registry is gone: nothing will shut this stream down.
-        None => std::future::pending().await,
-    }
 }
 
 /// Sends `feed`'s messages at their times divided by `speed` after now, until the
@@ -239,7 +212,7 @@ pub async fn pace(
     loop {
         let next = tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }
@@ -265,7 +238,7 @@ pub async fn pace(
         };
         tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }
@@ -274,7 +247,7 @@ pub async fn pace(
         }
         tokio::select! {
             biased;
-            reason = shut_down(&mut shutdown) => {
+            reason = closed(&mut shutdown) => {
                 let _ = tx.send(Err(ended(reason))).await;
                 return;
             }

@@ -8,7 +8,7 @@ use tonic::{Request, Response, Status};
 
 use super::auth::caller;
 use super::registry::Registry;
-use crate::session::describe;
+use crate::frame::description;
 
 pub struct ScenesService {
     pub registry: Arc<Registry>,
@@ -27,7 +27,7 @@ impl ScenesService {
         let sim = tokio::task::block_in_place(|| scene.build()).map_err(|e| {
             Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
         })?;
-        Ok(describe::description(scene, &sim))
+        Ok(description::description(scene, &sim))
     }
 }
 

@@ -4,8 +4,9 @@
 //! is the last guard. Each tick, before anything is published or recorded, the frame's
 //! surface positions (f32, so a finite f64 too large for f32 counts too) and every
 //! instrument's local model and force are checked — a pass over data the frame holds
-//! anyway, no allocation. The first fault halts the simulation: the tick is neither
-//! sent nor recorded, a `SIMULATION_HALTED` event says what and when (to the streams and
+//! anyway, no allocation. The first fault halts the simulation: the tick's frame is
+//! neither sent nor recorded (its contact events, which carry only the tick and its
+//! time, are already out), a `SIMULATION_HALTED` event says what and when (to the streams and
 //! the recording), `SessionInfo.simulation_error` keeps it, and the thread waits for
 //! the session to close (or idle out) without ticking, so that the recording holds only
 //! finite frames and is finished as usual.

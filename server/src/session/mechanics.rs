@@ -8,9 +8,9 @@ use std::time::{Duration, Instant, SystemTime};
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use super::describe::{ContactWatch, instrument_state, surface_positions};
-use super::{Frame, PoseIn, Session, SessionStats};
-use crate::engine::scene::Simulation;
+use super::{PoseIn, Session, SessionStats};
+use crate::engine::simulation::Simulation;
+use crate::frame::{Frame, Holder, TickOutputs};
 use crate::recording::{Item, Recorder, Report};
 
 /// What the thread owns.
@@ -54,8 +54,8 @@ impl Mechanics {
         self.sim.integrator.set_interrupt(self.stop.clone());
         let dt = Duration::from_secs_f64(self.sim.dt);
         let n = self.sim.instruments.len();
-        let mut holders: Vec<Option<(u64, u64)>> = vec![None; n];
-        let mut contacts = ContactWatch::new(n);
+        let mut holders = vec![Holder::default(); n];
+        let mut outputs = TickOutputs::new(n);
         let mut tick_ms: Vec<f64> = Vec::with_capacity(256);
         let mut idle_since: Option<Instant> = None;
         let mut next = Instant::now();
@@ -75,7 +75,10 @@ impl Mechanics {
             for (k, input) in self.inputs.iter_mut().enumerate() {
                 if let Some(p) = *input.read() {
                     self.sim.set_pose(k, Some(p.pose));
-                    holders[k] = Some((p.station, p.sequence));
+                    holders[k] = Holder {
+                        station: Some(p.station),
+                        pose_sequence: Some(p.sequence),
+                    };
                 }
             }
             self.sim.tick();
@@ -83,28 +86,17 @@ impl Mechanics {
                 // Closing cut the tick short: it is not published.
                 break;
             }
-            let frame = Frame {
-                tick: self.sim.tick,
-                sim_time: self.sim.time,
-                surface: surface_positions(&self.sim),
-                instruments: (0..n)
-                    .map(|k| {
-                        let h = holders[k];
-                        instrument_state(&self.sim, k, h.map(|h| h.0), h.map(|h| h.1))
-                    })
-                    .collect(),
-            };
+            let events = &self.events;
+            let recorder = self.recorder.as_deref();
+            let frame = outputs.produce(
+                &self.sim,
+                |k| holders[k],
+                |event| super::broadcast_event(recorder, events, event),
+            );
             if let Some(fault) = super::first_non_finite(&frame.surface, &frame.instruments) {
                 self.halt(fault, idle_since);
                 break;
             }
-            let events = &self.events;
-            let recorder = self.recorder.as_deref();
-            contacts.update(
-                &self.sim,
-                |k| holders[k].map(|h| h.0),
-                |event| super::broadcast_event(recorder, events, event),
-            );
             let frame = Arc::new(frame);
             if let Some(r) = &self.recorder {
                 let report = r.offer(Item::Frame {

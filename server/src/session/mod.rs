@@ -1,10 +1,12 @@
 //! One running scene: its fixed-rate mechanics thread, the poses stations send it, the
 //! frames and events it publishes.
 //!
-//! The mechanics thread ([`mechanics`]) owns the [`Simulation`]; nothing else touches
+//! The mechanics thread ([`mechanics`]) owns the
+//! [`Simulation`](crate::engine::simulation::Simulation); nothing else touches
 //! it. Poses reach it through one latest-value slot per instrument (a triple buffer:
 //! the thread reads the newest without waiting, a station overwrites without
-//! waiting). Each tick it publishes a [`Frame`] on a `watch` channel — every stream
+//! waiting). Each tick it publishes a [`Frame`] (made by [`crate::frame`], as a
+//! replay makes it) on a `watch` channel — every stream
 //! sends the newest it has not sent, so a slow client skips frames and never delays
 //! the tick — and events on a `broadcast` channel. The roster (who holds which
 //! instrument) is behind a mutex only the network side takes.
@@ -14,7 +16,8 @@
 //! never waits, and what the recorder leaves out or fails on is published as an
 //! event. The mechanics thread finishes the file when it stops.
 
-pub mod describe;
+pub mod closing;
+mod error;
 mod halt;
 pub mod idle;
 pub mod input;
@@ -32,22 +35,15 @@ use std::time::{Duration, Instant, SystemTime};
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use crate::engine::scene::{Scene, SceneError};
+use crate::engine::scene::Scene;
+use crate::frame::Frame;
+use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
+pub use closing::Closing;
+pub use error::SessionError;
 pub use halt::first_non_finite;
 pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
-
-/// The state of the liver and the instruments after one tick.
-#[derive(Debug, Default)]
-pub struct Frame {
-    pub tick: u64,
-    pub sim_time: f64,
-    /// Surface positions, packed f32 triples in the rest surface's order.
-    pub surface: Vec<f32>,
-    /// Every instrument's state, in scene order.
-    pub instruments: Vec<v1::InstrumentState>,
-}
 
 /// How a session runs.
 #[derive(Clone, Debug)]
@@ -99,8 +95,7 @@ pub struct Session {
     slots: Vec<Mutex<triple_buffer::Input<Option<PoseIn>>>>,
     frames: watch::Receiver<Arc<Frame>>,
     events: broadcast::Sender<v1::Event>,
-    /// `Some(reason)` once the session is closing.
-    closing: watch::Sender<Option<String>>,
+    closing: Closing,
     stop: Arc<AtomicBool>,
     thread: Mutex<Option<JoinHandle<()>>>,
     recorder: Option<Arc<Recorder>>,
@@ -122,9 +117,9 @@ impl Session {
         id: String,
         scene: Scene,
         config: &SessionConfig,
-    ) -> Result<Arc<Self>, SceneError> {
+    ) -> Result<Arc<Self>, SessionError> {
         let sim = scene.build()?;
-        let description = describe::description(&scene, &sim);
+        let description = description(&scene, &sim);
         let (lo, hi) = sim.mesh.bounding_box();
         let reach = sim.instruments.iter().map(|i| i.length).fold(0.0, f64::max) + 0.05;
         let workspace = Workspace {
@@ -136,7 +131,6 @@ impl Session {
             (0..n).map(|_| triple_buffer::triple_buffer(&None)).unzip();
         let (frame_tx, frames) = watch::channel(Arc::new(Frame::default()));
         let (events, _) = broadcast::channel(EVENT_BACKLOG);
-        let (closing, _) = watch::channel(None);
         let stats = Arc::new(SessionStats::default());
         let stop = Arc::new(AtomicBool::new(false));
         let created_at = SystemTime::now();
@@ -154,11 +148,11 @@ impl Session {
                     start: created_at,
                     description: description.clone(),
                 };
-                let recorder = Recorder::start(path, header).map_err(|e| SceneError::Invalid {
-                    scene: scene.source.clone(),
-                    path: "recording".into(),
-                    message: format!("cannot start the recorder thread: {e}"),
-                })?;
+                let recorder =
+                    Recorder::start(path, header).map_err(|source| SessionError::Spawn {
+                        thread: "recorder",
+                        source,
+                    })?;
                 Some(Arc::new(recorder))
             }
             None => None,
@@ -177,7 +171,7 @@ impl Session {
             slots: inputs.into_iter().map(Mutex::new).collect(),
             frames,
             events: events.clone(),
-            closing,
+            closing: Closing::new(),
             stop: stop.clone(),
             thread: Mutex::new(None),
             recorder: recorder.clone(),
@@ -194,10 +188,9 @@ impl Session {
             session: weak,
             recorder,
         })
-        .map_err(|e| SceneError::Invalid {
-            scene: session.scene.source.clone(),
-            path: "mechanics".into(),
-            message: format!("cannot start the mechanics thread: {e}"),
+        .map_err(|source| SessionError::Spawn {
+            thread: "mechanics",
+            source,
         })?;
         *session.thread.lock().unwrap_or_else(|e| e.into_inner()) = Some(thread);
         Ok(session)
@@ -331,24 +324,16 @@ impl Session {
 
     /// Resolves to the reason once the session is closing.
     pub fn closing(&self) -> watch::Receiver<Option<String>> {
-        self.closing.subscribe()
+        self.closing.watch()
     }
 
     pub fn is_closed(&self) -> bool {
-        self.closing.borrow().is_some()
+        self.closing.is_closed()
     }
 
     /// Closes the session: streams end, the mechanics thread stops. Idempotent.
     pub fn close(&self, reason: &str) {
-        let first = self.closing.send_if_modified(|c| {
-            if c.is_none() {
-                *c = Some(reason.to_string());
-                true
-            } else {
-                false
-            }
-        });
-        if first {
+        if self.closing.close(reason) {
             self.publish(
                 v1::EventKind::SessionClosing,
                 None,
@@ -508,3 +493,6 @@ impl Drop for Session {
         self.stop.store(true, Ordering::Relaxed);
     }
 }
+
+#[cfg(test)]
+mod tests;

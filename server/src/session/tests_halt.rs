@@ -10,8 +10,10 @@ use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
 use super::mechanics::{Mechanics, spawn};
-use super::{Frame, SessionStats, describe, first_non_finite};
+use super::{SessionStats, first_non_finite};
 use crate::engine::scene::Scene;
+use crate::frame::Frame;
+use crate::frame::description::description;
 use crate::recording::{Recorder, Recording, SessionHeader};
 
 fn state(force: [f64; 3]) -> v1::InstrumentState {
@@ -83,7 +85,7 @@ fn a_non_finite_tick_halts_the_session_and_its_recording_stays_finite() {
         scene_toml: scene.text.clone(),
         scene_dir: None,
         start: SystemTime::now(),
-        description: describe::description(&scene, &sim),
+        description: description(&scene, &sim),
     };
     let recorder = Arc::new(Recorder::start(path.clone(), header).unwrap());
     let (frames_tx, frames) = watch::channel(Arc::new(Frame::default()));

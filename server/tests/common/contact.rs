@@ -2,7 +2,7 @@
 
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::contact::closest::{closest_edge_axis, closest_point_axis};
-use laparo_server::engine::scene::Simulation;
+use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
 /// How deep a surface vertex or edge may be inside an instrument, m.

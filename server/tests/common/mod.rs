@@ -4,7 +4,8 @@
 pub mod contact;
 
 use laparo_server::engine::integrate::{IntegratorKind, mechanical_energy};
-use laparo_server::engine::scene::{Scene, Simulation};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
 
 pub const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
 pub const LIVER_5K: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh");

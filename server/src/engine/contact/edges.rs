@@ -21,7 +21,7 @@ use nalgebra::Point3;
 
 use super::crossing::{EdgeEnd, MovingEdge, closer_to_axis, edge_crossing};
 use super::pose::InstrumentPose;
-use super::stage::Scratch;
+use super::scratch::Scratch;
 
 /// Rounds of re-testing after the move; each round only sends vertices back to their
 /// start, so it ends, and in practice one round suffices.

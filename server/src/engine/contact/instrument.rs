@@ -3,7 +3,6 @@
 use nalgebra::{Point3, Unit, Vector3};
 
 use super::pose::InstrumentPose;
-use crate::engine::scene::InstrumentSpec;
 
 /// One laparoscopic instrument: its geometry, its poses at the start and end of the
 /// tick, and the vertices it holds.
@@ -81,16 +80,25 @@ pub struct TipContact {
 }
 
 impl Instrument {
-    /// An instrument of the scene, out of the body, for a mesh of `vertices` vertices.
-    pub fn new(spec: &InstrumentSpec, vertices: usize) -> Self {
+    /// An instrument named `name`, of shaft radius `radius` and length `length` (m),
+    /// entering through `trocar`, out of the body, for a mesh of `vertices` vertices.
+    /// It pushes tissue with its tip and its shaft, without friction; set
+    /// `tip_contact`, `shaft_contact` and `friction` for another kind.
+    pub fn new(
+        name: impl Into<String>,
+        radius: f64,
+        length: f64,
+        trocar: Point3<f64>,
+        vertices: usize,
+    ) -> Self {
         Instrument {
-            name: spec.name.clone(),
-            radius: spec.radius,
-            length: spec.length,
-            trocar: Point3::from(spec.trocar),
-            tip_contact: spec.tip_contact,
-            shaft_contact: spec.shaft_contact,
-            friction: spec.friction,
+            name: name.into(),
+            radius,
+            length,
+            trocar,
+            tip_contact: true,
+            shaft_contact: true,
+            friction: 0.0,
             previous: None,
             current: None,
             held: Vec::with_capacity(vertices),

@@ -22,6 +22,8 @@
 //! - `tip`: the triangle under the tip onto the plane at distance `r` (§2.5).
 //! - `push`: edges and vertices out of the instrument (§2.6).
 //! - [`instrument`]: an instrument's geometry, poses, held vertices and report.
+//! - `scratch`: the buffers the stage and its steps share, allocated once, and the
+//!   stage's work counters.
 //! - Pure geometry, plain data in and out, no allocation:
 //!   [`pose`] (the rigid motion of eq. 1), [`crossing`] (eq. 2–6 derived again, the
 //!   printed typos corrected and every degenerate case decided), [`closest`] (closest
@@ -41,10 +43,12 @@ mod edges;
 pub mod instrument;
 pub mod pose;
 mod push;
+mod scratch;
 pub mod stage;
 mod tip;
 
 pub use crossing::{Crossing, CrossingKind, EdgeEnd, MovingEdge, closer_to_axis, edge_crossing};
 pub use instrument::{ContactReport, Instrument, NearestSurface, TipContact};
 pub use pose::{InstrumentPose, rigid_motion};
-pub use stage::{ContactStage, ContactStats};
+pub use scratch::ContactStats;
+pub use stage::{ContactStage, MAX_INSTRUMENTS};

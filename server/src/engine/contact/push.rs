@@ -16,7 +16,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::closest::{closest_edge_axis, closest_point_axis};
 use super::pose::{InstrumentPose, perpendicular};
-use super::stage::Scratch;
+use super::scratch::Scratch;
 use crate::engine::mesh::Surface;
 
 /// Passes over the candidates per tick; they stop as soon as one moves nothing.

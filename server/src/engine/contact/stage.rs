@@ -2,14 +2,14 @@
 //! → tip → push-out → which vertices the instrument holds.
 //!
 //! Around the elastic step:
-//! - [`ContactStage::before_step`]: the vertices an instrument holds follow its rigid
-//!   motion `R` (eq. 1) — their imposed targets become `R(x)` — and the tick's start
-//!   positions are kept;
+//! - [`ContactStage::carry_held_vertices`]: the vertices an instrument holds follow
+//!   its rigid motion `R` (eq. 1) — their imposed targets become `R(x)` — and the
+//!   tick's start positions are kept;
 //! - the integrator advances the liver with those vertices imposed (free motion);
-//! - [`ContactStage::after_step`]: for each instrument in turn, the steps of §2.3–2.6
-//!   on the surface seen from the instrument, then the hold/release decision, then one
-//!   more push-out pass for every instrument so that a vertex pushed by one is not left
-//!   inside another.
+//! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of
+//!   §2.3–2.6 on the surface seen from the instrument, then the hold/release decision,
+//!   then one more push-out pass for every instrument so that a vertex pushed by one
+//!   is not left inside another.
 //!
 //! Holding and release. A vertex the stage moved is held: imposed on the elastic model
 //! at that position, so the deformation spreads into the liver. A held vertex the stage
@@ -28,69 +28,15 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
-use super::crossing::Crossing;
 use super::edges::stop_colliding_edges;
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
+use super::scratch::{ContactStats, Scratch};
 use super::tip::{nearest_point, press_tip};
 use crate::engine::elastic::ElasticModel;
 use crate::engine::integrate::{Imposed, State};
 use crate::engine::mesh::Surface;
-
-/// Counters of the work the stage did, cumulative since it was built: they show which
-/// parts of the algorithm a scene exercises (a scene without shaft contact tests no
-/// edge; a scene without instruments builds no stage at all).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ContactStats {
-    /// Instrument-ticks processed.
-    pub instrument_ticks: u64,
-    /// Candidate triangles returned by the broad phase.
-    pub candidate_triangles: u64,
-    /// Edge–axis crossing tests (eq. 2–5).
-    pub edge_tests: u64,
-    /// Colliding edges found.
-    pub colliding_edges: u64,
-    /// Vertex moves made by the stage.
-    pub vertex_moves: u64,
-}
-
-/// Buffers of the stage, allocated once for the mesh.
-#[derive(Debug)]
-pub(super) struct Scratch {
-    /// Start positions of the tick in the current instrument's frame, `R(x_start)`.
-    pub rel_start: Vec<Point3<f64>>,
-    pub fixed: Vec<bool>,
-    /// Candidate triangles, edges and vertices for the current instrument.
-    pub triangles: Vec<u32>,
-    pub edges: Vec<u32>,
-    pub vertices: Vec<u32>,
-    pub colliding: Vec<(u32, Crossing)>,
-    pub interval: Vec<[f64; 2]>,
-    pub interval_vertices: Vec<u32>,
-    pub interval_mark: Vec<u32>,
-    edge_mark: Vec<u32>,
-    vertex_mark: Vec<u32>,
-    moved_mark: Vec<u32>,
-    /// Vertices moved for the current instrument.
-    pub moved: Vec<u32>,
-    /// Bumped for every instrument and pass, so marks never need clearing.
-    pub mark: u32,
-    /// Bumped for every gathering of candidates (and every set of intervals).
-    pub gather_mark: u32,
-    pub stats: ContactStats,
-}
-
-impl Scratch {
-    /// Records that the stage moved vertex `v` for the current instrument.
-    pub fn touch(&mut self, v: u32) {
-        self.stats.vertex_moves += 1;
-        if self.moved_mark[v as usize] != self.mark {
-            self.moved_mark[v as usize] = self.mark;
-            self.moved.push(v);
-        }
-    }
-}
 
 /// The contact stage of a scene with instruments.
 #[derive(Debug)]
@@ -150,11 +96,6 @@ impl ContactStage {
                 ]
             })
             .collect();
-        let mut fixed_mask = vec![false; n];
-        for &v in fixed {
-            fixed_mask[v as usize] = true;
-        }
-        let ntri = surface.triangles.len();
         ContactStage {
             broadphase: (0..instruments)
                 .map(|_| BroadPhase::new(surface, rest))
@@ -165,24 +106,7 @@ impl ContactStage {
             current: rest.to_vec(),
             holders: vec![0; n],
             slide: vec![Vector3::zeros(); n],
-            s: Scratch {
-                rel_start: rest.to_vec(),
-                fixed: fixed_mask,
-                triangles: Vec::with_capacity(ntri),
-                edges: Vec::with_capacity(surface.edges.len()),
-                vertices: Vec::with_capacity(surface.vertices.len()),
-                colliding: Vec::with_capacity(surface.edges.len()),
-                interval: vec![[0.0, 1.0]; n],
-                interval_vertices: Vec::with_capacity(n),
-                interval_mark: vec![0; n],
-                edge_mark: vec![0; surface.edges.len()],
-                vertex_mark: vec![0; n],
-                moved_mark: vec![0; n],
-                moved: Vec::with_capacity(n),
-                mark: 0,
-                gather_mark: 0,
-                stats: ContactStats::default(),
-            },
+            s: Scratch::new(surface, rest, fixed),
         }
     }
 
@@ -193,7 +117,7 @@ impl ContactStage {
 
     /// Before the elastic step: held vertices follow their instrument's rigid motion,
     /// and instruments that left the body let go of everything.
-    pub fn before_step(
+    pub fn carry_held_vertices(
         &mut self,
         instruments: &mut [Instrument],
         surface: &Surface,
@@ -231,7 +155,7 @@ impl ContactStage {
 
     /// After the elastic step: the contact algorithm for every instrument, then holds
     /// and releases, reactions and velocities. `dt` is the tick, s.
-    pub fn after_step(
+    pub fn resolve_contact(
         &mut self,
         instruments: &mut [Instrument],
         surface: &Surface,

@@ -18,7 +18,7 @@ use nalgebra::{Point3, Unit};
 use super::closest::{closest_point_triangle, interpolated_normal, ray_triangle};
 use super::instrument::{NearestSurface, TipContact};
 use super::pose::InstrumentPose;
-use super::stage::Scratch;
+use super::scratch::Scratch;
 use crate::engine::mesh::Surface;
 
 /// `n·Z` below which a plane is too oblique to project onto along `Z`: at 0.2

@@ -47,13 +47,24 @@ pub mod stiffness;
 
 use laparo_proto::force::{DeviceForce, ForceModel, LocalModel, Plane, split};
 use nalgebra::{Point3, Unit, Vector3};
+use serde::Deserialize;
 
 use crate::engine::contact::{Instrument, InstrumentPose};
 use crate::engine::elastic::ElasticModel;
 use crate::engine::mesh::{Surface, TetMesh};
-use crate::engine::scene::ForceModelKind;
 use free::FreeSurface;
 use stiffness::{Calibration, VertexMaterial};
+
+/// The reaction-force model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ForceModelKind {
+    /// The paper's: apparent stiffness proportional to the local Young's modulus.
+    #[default]
+    Geometric,
+    /// Stiffness and anchors fitted to the elastic model's reaction each tick.
+    Calibrated,
+}
 
 /// The force stage of a scene with instruments: builds every instrument's local model
 /// and force after the contact stage. Allocates nothing per tick.
@@ -141,7 +152,7 @@ impl LocalModelStage {
 
     /// After the contact stage of tick `tick` (simulated time `time`): each
     /// instrument's local model and force, from the positions `x`.
-    pub fn update(
+    pub fn compute_models_and_forces(
         &mut self,
         tick: u64,
         time: f64,

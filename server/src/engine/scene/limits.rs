@@ -83,7 +83,7 @@ pub fn max_cg_iterations(vertices: usize) -> u32 {
 impl Scene {
     /// The scaled and centred mesh stays within [`MAX_COORDINATE_M`] and is at least
     /// [`MIN_MESH_SIZE_M`] across.
-    pub(super) fn check_mesh_extent(&self, mesh: &TetMesh) -> Result<(), SceneError> {
+    pub(crate) fn check_mesh_extent(&self, mesh: &TetMesh) -> Result<(), SceneError> {
         let (lo, hi) = mesh.bounding_box();
         let far = lo.coords.amax().max(hi.coords.amax());
         if !(far.is_finite() && far <= MAX_COORDINATE_M) {
@@ -112,7 +112,7 @@ impl Scene {
     /// The work of one tick stays within [`MAX_TICK_WORK`]: the explicit integrator's
     /// substeps (from its stable step on this mesh and material), or the CG iteration
     /// cap, times the vertices.
-    pub(super) fn check_tick_work(
+    pub(crate) fn check_tick_work(
         &self,
         integrator: &Integrator,
         vertices: usize,

@@ -1,26 +1,24 @@
-//! Scenes: what a simulation declares, read from TOML, checked, and built.
+//! Scenes: what a simulation declares, read from TOML and checked.
 //!
 //! A scene declares what it uses — its mesh and scale, materials, supports, gravity,
 //! integrator and rate, instruments, force model and recording — and
-//! [`Scene::build`] builds only that. Every quantity is in SI units once loaded
-//! (positions in metres after `mesh.scale`).
+//! [`Scene::build`] (in [`crate::engine::simulation`]) builds only that. Every
+//! quantity is in SI units once loaded (positions in metres after `mesh.scale`).
 //!
 //! Reading is strict: an unknown key, a value of the wrong type, or a value out of
 //! range is an error that names the key's path (`material.poisson_ratio`,
 //! `instruments[1].radius`) and, for syntax and type errors, the line.
 
-mod build;
 mod error;
 mod files;
 pub mod limits;
 mod schema;
 
-pub use build::{Simulation, TickTiming};
 pub use error::SceneError;
 pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, read_bounded};
 pub use schema::{
-    BoxSpec, FixedSpec, ForceModelKind, ForceModelSpec, InstrumentSpec, MaterialSpec,
-    MechanicsSpec, MeshSpec, RecordingSpec, RegionSpec, Scene,
+    BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MaterialSpec, MechanicsSpec, MeshSpec,
+    RecordingSpec, RegionSpec, Scene,
 };
 
 /// The default scene, embedded in the binary: SOFA's liver scaled to about 0.2 m,
@@ -32,7 +30,7 @@ pub const BUILTIN_MESHES: &[(&str, &str)] =
     &[("liver.msh", include_str!("../../../meshes/liver.msh"))];
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 #[cfg(test)]
 mod tests_files;
 #[cfg(test)]

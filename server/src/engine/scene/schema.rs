@@ -7,7 +7,9 @@ use serde::Deserialize;
 use super::SceneError;
 use super::files::{MAX_SCENE_BYTES, read_bounded};
 use super::limits::*;
+use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::integrate::IntegratorKind;
+use crate::engine::local_model::ForceModelKind;
 
 /// A scene as declared in its TOML file.
 #[derive(Clone, Debug, Deserialize)]
@@ -187,17 +189,6 @@ pub struct ForceModelSpec {
     pub kind: ForceModelKind,
 }
 
-/// The reaction-force model.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ForceModelKind {
-    /// The paper's: apparent stiffness proportional to the local Young's modulus.
-    #[default]
-    Geometric,
-    /// Stiffness and anchors fitted to the elastic model's reaction each tick.
-    Calibrated,
-}
-
 /// Session recording.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -290,7 +281,7 @@ impl Scene {
             .expect("the embedded default scene is valid")
     }
 
-    pub(super) fn invalid(
+    pub(crate) fn invalid(
         &self,
         path: impl Into<String>,
         message: impl Into<String>,
@@ -382,13 +373,13 @@ impl Scene {
                 ),
             ));
         }
-        if self.instruments.len() > crate::engine::contact::stage::MAX_INSTRUMENTS {
+        if self.instruments.len() > MAX_INSTRUMENTS {
             return Err(self.invalid(
                 "instruments",
                 format!(
                     "{} instruments; a scene has at most {}",
                     self.instruments.len(),
-                    crate::engine::contact::stage::MAX_INSTRUMENTS
+                    MAX_INSTRUMENTS
                 ),
             ));
         }

@@ -1,0 +1,111 @@
+//! Standard output of the subcommands.
+//!
+//! `laparo … | head -1` closes the pipe after the first line. Rust ignores SIGPIPE,
+//! so the next write fails with `BrokenPipe` (where `println!` would panic with
+//! "failed printing to stdout"). Whoever reads has all it wanted: [`line()`] then ends
+//! the process at once, with status 0 and nothing on stderr, as a Unix filter does.
+//! Any other write failure (a full disk under a redirected output) ends it with
+//! status 1 and says why on stderr.
+//!
+//! A command that owns something which must be closed in order — `laparo demo`
+//! serves a recorded session in its own process — calls [`finish_when_closed`]
+//! first: a closed pipe then only silences the rest of its output, and the command
+//! runs to its end, so the session closes and its recording is finished.
+
+use std::fmt;
+use std::io::{self, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Set by [`finish_when_closed`]: a closed pipe silences output instead of exiting.
+static FINISH_WHEN_CLOSED: AtomicBool = AtomicBool::new(false);
+/// Set once standard output was found closed under [`finish_when_closed`].
+static CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// From now on a closed standard output silences the remaining lines instead of
+/// ending the process, so that the command can close what it owns.
+pub fn finish_when_closed() {
+    FINISH_WHEN_CLOSED.store(true, Ordering::Relaxed);
+}
+
+/// Prints one line to standard output through [`line`], as `println!` would.
+macro_rules! say {
+    () => {
+        $crate::cmd::out::line(format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::cmd::out::line(format_args!($($arg)*))
+    };
+}
+pub(crate) use say;
+
+/// How the process ends after standard output failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ending {
+    /// The reader closed the pipe: status 0, nothing said.
+    Quiet,
+    /// Anything else: status 1, with the error on stderr.
+    Failed,
+}
+
+impl Ending {
+    /// How a failed write to standard output ends the process.
+    pub fn of(error: &io::Error) -> Ending {
+        if error.kind() == io::ErrorKind::BrokenPipe {
+            Ending::Quiet
+        } else {
+            Ending::Failed
+        }
+    }
+}
+
+/// Writes `args` and a newline to `w` and flushes it, so that a closed reader shows
+/// at this line and not at exit.
+pub fn write_line(w: &mut impl Write, args: fmt::Arguments<'_>) -> io::Result<()> {
+    w.write_fmt(args)?;
+    w.write_all(b"\n")?;
+    w.flush()
+}
+
+/// Writes one line to standard output; if that fails, ends the process as
+/// [`Ending::of`] says.
+pub fn line(args: fmt::Arguments<'_>) {
+    if CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
+    if let Err(e) = write_line(&mut io::stdout().lock(), args) {
+        match Ending::of(&e) {
+            Ending::Quiet if FINISH_WHEN_CLOSED.load(Ordering::Relaxed) => {
+                CLOSED.store(true, Ordering::Relaxed)
+            }
+            Ending::Quiet => std::process::exit(0),
+            Ending::Failed => {
+                eprintln!("laparo: cannot write to standard output: {e}");
+                std::process::exit(1)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_closed_pipe_ends_quietly_and_other_failures_do_not() {
+        let (reader, mut writer) = io::pipe().unwrap();
+        write_line(&mut writer, format_args!("first {}", 1)).unwrap();
+        drop(reader);
+        let e = write_line(&mut writer, format_args!("second")).unwrap_err();
+        assert_eq!(Ending::of(&e), Ending::Quiet);
+        let full = io::Error::from(io::ErrorKind::StorageFull);
+        assert_eq!(Ending::of(&full), Ending::Failed);
+    }
+
+    #[test]
+    fn a_line_ends_with_one_newline() {
+        let mut buffer = Vec::new();
+        write_line(&mut buffer, format_args!("a {} b", 2)).unwrap();
+        write_line(&mut buffer, format_args!("")).unwrap();
+        assert_eq!(buffer, b"a 2 b\n\n");
+    }
+}

@@ -1,0 +1,148 @@
+//! `laparo recordings list|recover`: the recordings of a directory or a server, one
+//! markdown table row each; a truncated recording rewritten into a complete one.
+
+use std::path::{Path, PathBuf};
+
+use clap::Subcommand;
+use laparo_server::recording::{FileState, list, recover};
+
+use super::BoxError;
+use super::args::RemoteArgs;
+use super::out::say;
+use crate::connect::{ConnectConfig, connect};
+use crate::proto::v1::ListRecordingsRequest;
+
+/// `laparo recordings …`.
+#[derive(Subcommand, Debug, Clone)]
+pub enum RecordingsCommand {
+    /// List the recordings of a directory, or of a server with `--server`: session,
+    /// scene, start, duration, size, and whether each is complete or still being
+    /// recorded.
+    List {
+        /// The recordings directory.
+        #[arg(
+            long,
+            value_name = "DIR",
+            default_value = "recordings",
+            conflicts_with = "server"
+        )]
+        dir: PathBuf,
+        #[command(flatten)]
+        remote: RemoteArgs,
+    },
+    /// Rewrite a truncated recording (a server killed mid-session) into a valid,
+    /// indexed one, keeping every complete chunk.
+    Recover {
+        /// The truncated recording.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Where to write the recovered file [default: over FILE].
+        #[arg(long, value_name = "OUT")]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Runs `list` or `recover`.
+pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
+    match command {
+        RecordingsCommand::List { dir, remote } => {
+            say!(
+                "| file | session | scene | start (unix s) | duration (s) | size (bytes) | state |"
+            );
+            say!("|---|---|---|---|---|---|---|");
+            match remote.connect_config() {
+                Some(server) => list_server(&server).await,
+                None => list_dir(&dir),
+            }
+        }
+        RecordingsCommand::Recover { file, out } => {
+            let out = out.unwrap_or_else(|| file.clone());
+            let r = recover(&file, &out)?;
+            say!(
+                "{} → {}: {} chunks, {} messages kept ({} bytes), {} bytes after the last complete chunk left out{}",
+                file.display(),
+                out.display(),
+                r.chunks,
+                r.messages,
+                r.bytes_kept,
+                r.bytes_dropped,
+                if r.was_complete {
+                    "; it was complete"
+                } else {
+                    ""
+                }
+            );
+            Ok(())
+        }
+    }
+}
+
+/// The rows of a server's recordings (`ListRecordings`).
+async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
+    let connection = connect(server).await?;
+    let listed = connection
+        .recordings()
+        .list_recordings(ListRecordingsRequest {})
+        .await?
+        .into_inner();
+    for r in listed.recordings {
+        let start = r
+            .start
+            .map_or(0.0, |t| t.seconds as f64 + t.nanos as f64 * 1e-9);
+        row(
+            &r.file,
+            &r.session_id,
+            &r.scene,
+            start,
+            r.duration_s,
+            r.size_bytes,
+            if r.in_progress {
+                "in progress"
+            } else {
+                "complete"
+            },
+        );
+    }
+    Ok(())
+}
+
+/// The rows of the recordings in `dir`, an unreadable one with why.
+fn list_dir(dir: &Path) -> Result<(), BoxError> {
+    let listed = list(dir, |_| false).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for l in listed {
+        match &l.entry {
+            Ok(e) => row(
+                &l.file,
+                &e.session_id,
+                &e.scene,
+                e.start_unix_ns as f64 * 1e-9,
+                e.duration_s,
+                l.size_bytes,
+                match e.state {
+                    FileState::Complete => "complete",
+                    FileState::InProgress => "in progress",
+                    FileState::Unfinished => {
+                        "no footer: still being recorded, or cut short (`recordings recover` completes it)"
+                    }
+                },
+            ),
+            Err(e) => say!("| {} | — | — | — | — | {} | {e} |", l.file, l.size_bytes),
+        }
+    }
+    Ok(())
+}
+
+/// One row of `laparo recordings list`, from a directory or a server alike.
+fn row(
+    file: &str,
+    session: &str,
+    scene: &str,
+    start_unix_s: f64,
+    duration_s: f64,
+    size_bytes: u64,
+    state: &str,
+) {
+    say!(
+        "| {file} | {session} | {scene} | {start_unix_s:.0} | {duration_s:.2} | {size_bytes} | {state} |"
+    );
+}

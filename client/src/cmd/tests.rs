@@ -1,0 +1,259 @@
+//! The command line's parsing: defaults, options, and bad values as usage errors.
+
+use clap::error::ErrorKind;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::Parser;
+
+use super::recordings::RecordingsCommand;
+use super::{Cli, Command};
+use crate::haptics::force_loop::DEFAULT_RATE_HZ;
+use crate::station::DEFAULT_POSE_RATE_HZ;
+
+fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+    Cli::try_parse_from(std::iter::once("laparo").chain(args.iter().copied()))
+}
+
+#[test]
+fn station_defaults_and_options() {
+    let cli = parse(&[
+        "station",
+        "--server",
+        "http://127.0.0.1:50051",
+        "--session",
+        "s1",
+    ])
+    .unwrap();
+    let Command::Station(a) = cli.command else {
+        panic!("not station")
+    };
+    assert_eq!(a.instruments, vec!["left".to_owned()]);
+    assert_eq!(a.pose_rate, DEFAULT_POSE_RATE_HZ);
+    assert_eq!(a.haptic_rate, DEFAULT_RATE_HZ);
+    assert_eq!(a.seconds, None);
+    assert_eq!(a.server.connect_config().token, None);
+
+    let cli = parse(&[
+        "station",
+        "--server",
+        "https://sim.example:443",
+        "--session",
+        "s1",
+        "--instruments",
+        "left,right",
+        "--pose-rate",
+        "500",
+        "--seconds",
+        "2.5",
+        "--token",
+        "t0k",
+        "--ca",
+        "ca.pem",
+        "--haptic-rate",
+        "2000",
+    ])
+    .unwrap();
+    let Command::Station(a) = cli.command else {
+        panic!("not station")
+    };
+    assert_eq!(a.instruments, vec!["left".to_owned(), "right".to_owned()]);
+    assert_eq!(a.pose_rate, 500.0);
+    assert_eq!(a.haptic_rate, 2000.0);
+    assert_eq!(a.seconds, Some(Duration::from_millis(2500)));
+    let c = a.server.connect_config();
+    assert_eq!(c.token.as_deref(), Some("t0k"));
+    assert_eq!(c.ca_file, Some(PathBuf::from("ca.pem")));
+}
+
+#[test]
+fn observe_and_load_parse() {
+    let cli = parse(&[
+        "observe",
+        "--server",
+        "http://h:1",
+        "--session",
+        "s",
+        "--rate",
+        "10",
+        "--seconds",
+        "3",
+    ])
+    .unwrap();
+    let Command::Observe(a) = cli.command else {
+        panic!("not observe")
+    };
+    assert_eq!(
+        (a.rate, a.seconds),
+        (Some(10.0), Some(Duration::from_secs(3)))
+    );
+
+    let cli = parse(&[
+        "load",
+        "--server",
+        "http://h:1",
+        "--stations",
+        "8",
+        "--pose-rate",
+        "250",
+        "--seconds",
+        "10",
+    ])
+    .unwrap();
+    let Command::Load(a) = cli.command else {
+        panic!("not load")
+    };
+    assert_eq!((a.stations, a.pose_rate, a.session), (8, 250.0, None));
+}
+
+#[test]
+fn replay_and_list_read_files_here_or_ask_a_server() {
+    let Command::Replay(a) = parse(&["replay", "r.mcap"]).unwrap().command else {
+        panic!("not replay")
+    };
+    assert!(a.remote.connect_config().is_none());
+    let Command::Replay(a) = parse(&[
+        "replay",
+        "r.mcap",
+        "--server",
+        "http://h:1",
+        "--speed",
+        "4",
+        "--from",
+        "1.5",
+        "--token",
+        "t0k",
+    ])
+    .unwrap()
+    .command
+    else {
+        panic!("not replay")
+    };
+    assert_eq!((a.speed, a.from), (Some(4.0), Some(1.5)));
+    let c = a.remote.connect_config().unwrap();
+    assert_eq!(
+        (c.url.as_str(), c.token.as_deref()),
+        ("http://h:1", Some("t0k"))
+    );
+    let Command::Recordings(RecordingsCommand::List { dir, remote }) =
+        parse(&["recordings", "list"]).unwrap().command
+    else {
+        panic!("not recordings list")
+    };
+    assert_eq!((dir, remote.server), (PathBuf::from("recordings"), None));
+    let Command::Recordings(RecordingsCommand::List { remote, .. }) =
+        parse(&["recordings", "list", "--server", "http://h:1"])
+            .unwrap()
+            .command
+    else {
+        panic!("not recordings list")
+    };
+    assert_eq!(remote.server.as_deref(), Some("http://h:1"));
+}
+
+#[test]
+fn bad_values_are_usage_errors() {
+    let base = ["station", "--server", "http://h:1", "--session", "s"];
+    for bad in [
+        &["--pose-rate", "0"][..],
+        &["--pose-rate=-5"],
+        &["--pose-rate", "fast"],
+        &["--pose-rate", "inf"],
+        &["--haptic-rate", "100"],
+        &["--seconds", "0"],
+    ] {
+        let args: Vec<&str> = base.iter().chain(bad).copied().collect();
+        let e = parse(&args).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad:?}");
+        assert_eq!(e.exit_code(), 2);
+    }
+    let e = parse(&[
+        "observe",
+        "--server",
+        "http://h:1",
+        "--session",
+        "s",
+        "--rate",
+        "0",
+    ])
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::ValueValidation);
+    let e = parse(&[
+        "load",
+        "--server",
+        "http://h:1",
+        "--pose-rate",
+        "250",
+        "--seconds",
+        "1",
+    ])
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
+    let e = parse(&[
+        "load",
+        "--server",
+        "http://h:1",
+        "--stations",
+        "0",
+        "--pose-rate",
+        "250",
+        "--seconds",
+        "1",
+    ])
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::ValueValidation);
+    for bad in [
+        &["replay", "f.mcap", "--speed", "2"][..],
+        &["replay", "f.mcap", "--server", "http://h:1", "--speed", "0"],
+        &[
+            "replay",
+            "f.mcap",
+            "--server",
+            "http://h:1",
+            "--speed",
+            "nan",
+        ],
+        &["replay", "f.mcap", "--server", "http://h:1", "--from=-1"],
+        &["recordings", "list", "--token", "t"],
+        &["recordings", "list", "--dir", "d", "--server", "http://h:1"],
+    ] {
+        assert!(parse(bad).is_err(), "{bad:?}");
+    }
+    let Command::Demo(demo) = parse(&["demo"]).unwrap().command else {
+        panic!("demo parses");
+    };
+    assert_eq!(demo.seconds, Duration::from_secs(10));
+    assert!(parse(&["demo", "--seconds", "-1"]).is_err());
+}
+
+#[test]
+fn replay_plots_on_request() {
+    let Command::Replay(a) = parse(&["replay", "r.mcap"]).unwrap().command else {
+        panic!("not replay")
+    };
+    assert_eq!((a.plot, a.plot_size), (None, (1200, 600)));
+    let Command::Replay(a) = parse(&[
+        "replay",
+        "r.mcap",
+        "--plot",
+        "f.png",
+        "--plot-size",
+        "800x450",
+    ])
+    .unwrap()
+    .command
+    else {
+        panic!("not replay")
+    };
+    assert_eq!(a.plot, Some(PathBuf::from("f.png")));
+    assert_eq!(a.plot_size, (800, 450));
+    for bad in [
+        "800", "800x", "x450", "0x450", "100x100", "9000x450", "wide",
+    ] {
+        let e = parse(&["replay", "r.mcap", "--plot", "f.png", "--plot-size", bad]).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad}");
+    }
+    let e = parse(&["replay", "r.mcap", "--plot-size", "800x450"]).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
+}

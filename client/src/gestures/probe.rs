@@ -1,0 +1,70 @@
+//! A probe of the liver's free front face (+z): the tip approaches along −z, presses
+//! in, holds, slides sideways while pressed, holds, and withdraws; the axis always
+//! runs from the tip through the instrument's trocar.
+
+use nalgebra::{Point3, Unit, Vector3};
+
+use super::surface::front_middle;
+use crate::haptics::Trajectory;
+
+/// Duration of a [`Probe`], s.
+pub const PROBE_SECONDS: f64 = 4.0;
+
+/// How far in front of the surface the probe starts and ends, m.
+pub const PROBE_STANDOFF_M: f64 = 0.01;
+
+/// A probe of the front face. Phases, s: `[0, 0.25)` [`PROBE_STANDOFF_M`] in front
+/// of the surface; `[0.25, 1.25)` in to `depth` past the surface; `[1.25, 1.75)`
+/// held; `[1.75, 2.75)` sliding `slide` along +x; `[2.75, 3.25)` held;
+/// `[3.25, 3.75)` back out to the start; then still.
+#[derive(Clone, Copy, Debug)]
+pub struct Probe {
+    /// Where the tip starts, [`PROBE_STANDOFF_M`] in front of the surface, m.
+    pub start: Point3<f64>,
+    /// Depth past the undeformed surface, m.
+    pub depth: f64,
+    /// Sideways slide while pressed, m.
+    pub slide: f64,
+    /// The trocar the axis passes through.
+    pub trocar: Point3<f64>,
+}
+
+impl Probe {
+    /// A probe of the front face near its middle ([`front_middle`] of the surface
+    /// points given, m), by an instrument with `trocar`, centred on the front point
+    /// over its slide. `None` when no surface point is near the middle.
+    pub fn on_front(
+        surface: impl IntoIterator<Item = Point3<f64>>,
+        trocar: Point3<f64>,
+        depth: f64,
+        slide: f64,
+    ) -> Option<Self> {
+        let front = front_middle(surface)?;
+        Some(Probe {
+            start: front + Vector3::new(-slide / 2.0, 0.0, PROBE_STANDOFF_M),
+            depth,
+            slide,
+            trocar,
+        })
+    }
+
+    /// The tip at time `t`, s.
+    pub fn tip(&self, t: f64) -> Point3<f64> {
+        let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
+        let inward = PROBE_STANDOFF_M + self.depth;
+        let z = -inward * (ramp(0.25, 1.25) - ramp(3.25, 3.75));
+        let x = self.slide * ramp(1.75, 2.75);
+        self.start + Vector3::new(x, 0.0, z)
+    }
+
+    /// The pose at time `t`: the tip and the axis toward the trocar.
+    pub fn pose(&self, t: f64) -> (Point3<f64>, Unit<Vector3<f64>>) {
+        let tip = self.tip(t);
+        (tip, Unit::new_normalize(self.trocar - tip))
+    }
+
+    /// The probe as a device trajectory.
+    pub fn trajectory(self) -> Trajectory {
+        Box::new(move |t| self.pose(t))
+    }
+}

@@ -1,0 +1,83 @@
+use nalgebra::{Point3, Vector3};
+
+use super::intake::error_code_name;
+use super::*;
+use crate::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
+use crate::proto::force::LocalModel;
+use crate::proto::v1::{ErrorCode, InstrumentState};
+
+fn state(model: Option<v1::LocalModel>) -> InstrumentState {
+    InstrumentState {
+        instrument: "left".into(),
+        tick: 7,
+        local_model: model,
+        ..Default::default()
+    }
+}
+
+fn good_model() -> v1::LocalModel {
+    let m = LocalModel::free(7, 7.0 / 60.0, Point3::origin(), Vector3::z_axis());
+    v1::LocalModel::from(&m)
+}
+
+#[test]
+fn invalid_and_missing_models_are_counted_and_skipped() {
+    let device = ScriptedDevice::fixed(Point3::origin(), Vector3::z_axis(), 1.0, 1);
+    let (mut force_loop, mut inbox, _outbox) =
+        ForceLoop::new(ForceLoopConfig::new(Point3::new(0.0, 0.0, 0.1)), device).unwrap();
+    let mut intake = ModelIntake::default();
+
+    let mut bad = good_model();
+    bad.pose.as_mut().unwrap().axis.as_mut().unwrap().z = f64::NAN;
+    assert_eq!(intake.take(&state(Some(bad)), &mut inbox), None);
+    assert_eq!(intake.take(&state(None), &mut inbox), None);
+    assert_eq!(
+        intake,
+        ModelIntake {
+            applied: 0,
+            invalid: 2
+        }
+    );
+    force_loop.tick(0.0);
+    assert_eq!(
+        force_loop.stats().models_received,
+        0,
+        "nothing reached the loop"
+    );
+
+    assert!(
+        intake
+            .take(&state(Some(good_model())), &mut inbox)
+            .is_some()
+    );
+    assert_eq!(intake.applied, 1);
+    force_loop.tick(0.001);
+    assert_eq!(force_loop.stats().models_received, 1);
+}
+
+#[test]
+fn error_codes_are_named_as_in_the_contract() {
+    assert_eq!(
+        error_code_name(ErrorCode::OutOfOrder as i32),
+        "ERROR_CODE_OUT_OF_ORDER"
+    );
+    assert_eq!(error_code_name(999), "UNKNOWN_999");
+}
+
+#[test]
+fn ticks_are_counted_once_each() {
+    let mut t = TickCounter::default();
+    for tick in [3, 3, 4, 4, 2, 5] {
+        t.see(tick, tick as f64);
+    }
+    assert_eq!((t.ticks, t.last), (3, Some(5)));
+}
+
+#[test]
+fn a_status_keeps_its_code_and_message() {
+    let e = StationError::from(tonic::Status::not_found("no session \"x\""));
+    assert!(matches!(
+        &e,
+        StationError::Status { code: tonic::Code::NotFound, message } if message == "no session \"x\""
+    ));
+}

@@ -1,0 +1,212 @@
+//! Files cut short, damaged or not recordings at all: clear errors, never a panic,
+//! and every complete chunk recovered.
+
+use super::*;
+
+#[test]
+fn a_file_cut_short_recovers_every_complete_chunk() {
+    let dir = temp();
+    let full = dir.path().join("full.mcap");
+    let (boundaries, bytes) = chunked(&full, 24, 4);
+    let all = raw_messages(&full);
+    assert_eq!(all.len() as u64, boundaries.last().unwrap().1);
+    let mut cuts: Vec<(u64, u64, u64)> = Vec::new(); // (offset, at least, at most)
+    for w in boundaries.windows(2) {
+        let ((a, na), (b, nb)) = (w[0], w[1]);
+        cuts.push((a, na, na)); // right after a chunk and its indexes
+        cuts.push((a + 1, na, na)); // one byte into the next chunk
+        cuts.push(((a + b) / 2, na, nb)); // mid-chunk
+        cuts.push((b - 1, na, nb));
+    }
+    let n = all.len() as u64;
+    cuts.push((bytes.len() as u64 - 1, n, n)); // only the end magic missing
+    cuts.push((boundaries.last().unwrap().0 + 3, n, n)); // inside the summary
+    for (cut, at_least, at_most) in cuts {
+        let cut_path = dir.path().join(format!("cut-{cut}.mcap"));
+        std::fs::write(&cut_path, &bytes[..cut as usize]).unwrap();
+        assert!(matches!(
+            Recording::open(&cut_path),
+            Err(ReadError::Truncated { .. })
+        ));
+        let fixed = dir.path().join(format!("fixed-{cut}.mcap"));
+        let report = recover(&cut_path, &fixed).unwrap();
+        let got = raw_messages(&fixed);
+        assert!(
+            (at_least..=at_most).contains(&(got.len() as u64)),
+            "cut at {cut}: {} messages, expected {at_least}..={at_most}",
+            got.len()
+        );
+        assert_eq!(report.messages, got.len() as u64);
+        assert_eq!(got[..], all[..got.len()], "cut at {cut}");
+        assert!(report.bytes_kept <= cut);
+        // The recovered file is complete: indexed and readable as any recording.
+        let rec = Recording::open(&fixed).unwrap();
+        assert!(!rec.mcap_summary().chunk_indexes.is_empty());
+        assert_eq!(rec.meta().session_id, "s7");
+        assert_eq!(rec.message_counts().values().sum::<u64>(), got.len() as u64);
+        assert!(summarize(&rec).is_ok());
+    }
+    // A complete file recovers to the same messages, in place.
+    let copy = dir.path().join("copy.mcap");
+    std::fs::copy(&full, &copy).unwrap();
+    let report = recover(&copy, &copy).unwrap();
+    assert!(report.was_complete);
+    assert_eq!(raw_messages(&copy), all);
+}
+
+#[test]
+fn a_recording_of_another_version_is_refused_by_name() {
+    let dir = temp();
+    let path = dir.path().join("v2.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile("protobuf")
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
+        .unwrap();
+    w.write_metadata(&mcap::records::Metadata {
+        name: METADATA_NAME.into(),
+        metadata: [("format_version".to_string(), "2".to_string())].into(),
+    })
+    .unwrap();
+    w.finish().unwrap();
+    drop(w);
+    let err = Recording::open(&path).unwrap_err();
+    assert!(
+        matches!(&err, ReadError::UnsupportedVersion { found, .. } if found == "2"),
+        "{err}"
+    );
+    assert!(err.to_string().contains("version `2`"), "{err}");
+}
+
+#[test]
+fn files_that_are_not_recordings_give_clear_errors() {
+    let dir = temp();
+    let write = |name: &str, bytes: &[u8]| -> PathBuf {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let text = write("notes.mcap", b"this is not a recording at all");
+    assert!(matches!(
+        Recording::open(&text),
+        Err(ReadError::NotMcap { .. })
+    ));
+    assert!(matches!(
+        recover(&text, &dir.path().join("x.mcap")),
+        Err(RecoverError::NotMcap { .. })
+    ));
+    let empty = write("empty.mcap", b"");
+    assert!(matches!(
+        Recording::open(&empty),
+        Err(ReadError::NotMcap { .. })
+    ));
+    let mut framed = mcap::MAGIC.to_vec();
+    framed.extend_from_slice(&[0xAB; 100]);
+    framed.extend_from_slice(mcap::MAGIC);
+    let garbage = write("garbage.mcap", &framed);
+    let err = Recording::open(&garbage).unwrap_err();
+    assert!(matches!(err, ReadError::Corrupt { .. }), "{err}");
+    assert!(matches!(
+        Recording::open(&dir.path().join("missing.mcap")),
+        Err(ReadError::Io { .. })
+    ));
+
+    // An MCAP file without our metadata.
+    let plain = dir.path().join("plain.mcap");
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(&plain).unwrap(),
+    ))
+    .unwrap();
+    w.finish().unwrap();
+    drop(w);
+    assert!(matches!(
+        Recording::open(&plain),
+        Err(ReadError::NotARecording { .. })
+    ));
+
+    // Damage anywhere in a real recording: an error or a partial read, never a panic.
+    let good = dir.path().join("good.mcap");
+    record_script(&good, 10);
+    let bytes = std::fs::read(&good).unwrap();
+    for at in (8..bytes.len()).step_by(bytes.len() / 400 + 1) {
+        let mut bad = bytes.clone();
+        bad[at] ^= 0x5A;
+        if let Ok(rec) = Recording::from_bytes(format!("bad-{at}"), bad.clone()) {
+            let _ = rec.messages().count();
+            let _ = summarize(&rec);
+        }
+        let _ =
+            crate::recording::recover::recover_bytes("bad", &bad, std::io::Cursor::new(Vec::new()));
+    }
+}
+
+#[test]
+fn the_duration_is_the_last_frames_time_from_the_index_or_every_frame() {
+    let dir = temp();
+    let path = dir.path().join("run.mcap");
+    let (boundaries, bytes) = chunked(&path, 24, 5);
+    let rec = Recording::open(&path).unwrap();
+    assert!(rec.is_complete());
+    let surfaces = rec.surfaces().unwrap();
+    let last = surfaces.last().unwrap().message.sim_time_s;
+    assert_eq!(rec.duration_s().unwrap().to_bits(), last.to_bits());
+    assert_eq!(
+        rec.duration_s().unwrap().to_bits(),
+        summarize(&rec).unwrap().duration_s.to_bits()
+    );
+    // Cut after each closed chunk: read as far as it goes, the duration is that of
+    // the last tick of the complete chunks, and nothing else is lost.
+    for (k, &(cut, messages)) in boundaries.iter().enumerate().skip(1) {
+        let cut_bytes = bytes[..cut as usize + 1].to_vec();
+        assert!(matches!(
+            Recording::from_bytes("cut".into(), cut_bytes.clone()),
+            Err(ReadError::Truncated { .. })
+        ));
+        let partial = Recording::from_unfinished_bytes("cut".into(), cut_bytes).unwrap();
+        assert!(!partial.is_complete());
+        assert_eq!(partial.meta(), rec.meta());
+        assert_eq!(partial.scene().unwrap(), rec.scene().unwrap());
+        let ticks = (5 * k).min(24);
+        assert_eq!(
+            partial.duration_s().unwrap().to_bits(),
+            surfaces[ticks - 1].message.sim_time_s.to_bits(),
+            "cut after chunk {k}"
+        );
+        // messages() leaves out the Foxglove channel: a scene update every third
+        // tick at 60 Hz.
+        let drawn = (ticks as u64).div_ceil(foxglove_scene::stride(60.0));
+        assert_eq!(partial.messages().count() as u64 + drawn, messages);
+        assert_eq!(partial.surfaces().unwrap()[..], surfaces[..ticks]);
+    }
+    // Complete bytes read unfinished are just the recording.
+    let whole = Recording::from_unfinished_bytes("whole".into(), bytes).unwrap();
+    assert!(whole.is_complete());
+    assert_eq!(whole.surfaces().unwrap(), surfaces);
+}
+
+#[test]
+fn a_finished_file_is_mapped_and_a_recovery_over_it_leaves_the_map_whole() {
+    let dir = temp();
+    let path = dir.path().join("mapped.mcap");
+    // 24 ticks in chunks of 5.
+    let (boundaries, bytes) = chunked(&path, 24, 5);
+    let rec = Recording::open(&path).unwrap();
+    assert!(rec.is_mapped());
+    let before = rec.surfaces().unwrap();
+    assert_eq!(before.len(), 24);
+    // Cut after the second chunk, it is read into memory: a file being written
+    // changes under a map.
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..boundaries[2].0 as usize]).unwrap();
+    let partial = Recording::open_unfinished(&cut).unwrap();
+    assert!(!partial.is_mapped() && !partial.is_complete());
+    // Recovering the cut copy over the mapped file renames a new file over it: the
+    // open recording still reads every tick as written.
+    recover(&cut, &path).unwrap();
+    assert_eq!(rec.surfaces().unwrap(), before);
+    // And the path now holds the shorter recovered recording, mapped in its turn.
+    let now = Recording::open(&path).unwrap();
+    assert!(now.is_mapped());
+    assert_eq!(now.surfaces().unwrap()[..], before[..10]);
+}

@@ -1,0 +1,70 @@
+//! What a recordings directory lists.
+
+use super::*;
+
+#[test]
+fn a_directory_lists_recordings_oldest_first_and_says_what_is_wrong_with_the_rest() {
+    let dir = temp();
+    let d = dir.path();
+    // Two recordings, the second started earlier; a copy of one cut short.
+    let mut script = Script::new();
+    let now = SystemTime::now();
+    let mut write = |name: &str, start: SystemTime, ticks: u64| -> (PathBuf, f64) {
+        let path = d.join(name);
+        let mut header = script.header(start);
+        header.session_id = name.trim_end_matches(".mcap").into();
+        let mut sink = McapSink::create(&path, &header).unwrap();
+        let mut t = 0.0;
+        for k in 0..ticks {
+            let frame = script.tick(k);
+            t = frame.sim_time;
+            sink.write_frame(&frame, SystemTime::now()).unwrap();
+            sink.flush().unwrap();
+        }
+        drop(sink.finish().unwrap());
+        (path, t)
+    };
+    let (late, late_t) = write("b-late.mcap", now, 6);
+    let (early, early_t) = write("a-early.mcap", now - Duration::from_secs(60), 4);
+    let bytes = std::fs::read(&early).unwrap();
+    let cut = d.join("c-cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() - 40]).unwrap();
+    std::fs::write(d.join("d-notes.mcap"), b"not a recording").unwrap();
+    std::fs::write(d.join("e-notes.txt"), b"not listed").unwrap();
+    std::fs::create_dir(d.join("f-dir.mcap")).unwrap();
+
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    let listed = list(d, |_| false).unwrap();
+    let names: Vec<&str> = listed.iter().map(|l| l.file.as_str()).collect();
+    assert_eq!(
+        names,
+        ["a-early.mcap", "c-cut.mcap", "b-late.mcap", "d-notes.mcap"]
+    );
+    let entry = |k: usize| listed[k].entry.as_ref().unwrap();
+    assert_eq!(entry(0).session_id, "a-early");
+    assert_eq!(entry(0).state, FileState::Complete);
+    assert_eq!(entry(0).duration_s.to_bits(), early_t.to_bits());
+    assert_eq!(
+        entry(0).start_unix_ns,
+        unix_ns(now - Duration::from_secs(60))
+    );
+    assert_eq!(entry(0).scene, script.scene.name);
+    assert_eq!(listed[0].size_bytes, size(&early));
+    // The cut copy: what its complete chunks hold, and that it has no footer.
+    assert_eq!(entry(1).session_id, "a-early");
+    assert_eq!(entry(1).state, FileState::Unfinished);
+    assert_eq!(entry(1).duration_s.to_bits(), early_t.to_bits());
+    assert_eq!(listed[1].size_bytes, size(&cut));
+    assert_eq!(entry(2).state, FileState::Complete);
+    assert_eq!(entry(2).duration_s.to_bits(), late_t.to_bits());
+    assert_eq!(listed[2].size_bytes, size(&late));
+    assert!(matches!(listed[3].entry, Err(ReadError::NotMcap { .. })));
+    // A file a session is writing is in progress.
+    let listed = list(d, |p| p == cut).unwrap();
+    assert_eq!(
+        listed[1].entry.as_ref().unwrap().state,
+        FileState::InProgress
+    );
+    // A missing directory is an error, not an empty list.
+    assert!(list(&d.join("missing"), |_| false).is_err());
+}

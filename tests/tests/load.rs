@@ -1,0 +1,63 @@
+//! `laparo load` against a real server on loopback: one posing station per free
+//! instrument, the others only receiving, every station counted, the pose-to-state
+//! latency measured, and the session created for the run closed at its end.
+
+use std::time::Duration;
+
+use laparo_client::connect::ConnectConfig;
+use laparo_client::load::{LoadConfig, run_load};
+use laparo_proto::v1;
+use laparo_server::service::ServeConfig;
+use laparo_tests::server::TestServer;
+use tonic::Code;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_load_run_poses_from_one_station_per_free_instrument_and_closes_its_session() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let config = LoadConfig {
+        connect: ConnectConfig::new(format!("http://{}", server.addr)),
+        session: None,
+        stations: 3,
+        pose_rate_hz: 100.0,
+        duration: Duration::from_secs(2),
+        surface_frame_rate_hz: None,
+        scene: None,
+        record: Some(false),
+    };
+    let summary = run_load(config, |_| {}).await.unwrap();
+    assert!(summary.failures.is_empty(), "{:?}", summary.failures);
+    assert!(summary.created_session && !summary.recorded);
+    // The default scene has two instruments: two stations pose, the third receives.
+    assert_eq!((summary.stations, summary.posing_stations), (3, 2));
+    assert_eq!(summary.frames_per_station.len(), 3);
+    assert!(
+        summary.frames_per_station.iter().all(|&f| f > 0),
+        "{:?}",
+        summary.frames_per_station
+    );
+    assert!(summary.states > 0);
+    assert!(summary.errors.is_empty(), "{:?}", summary.errors);
+    // Every pose the session accepted was sent by a station of the run, and each
+    // latency measured is that of one pose sent.
+    assert!(summary.poses_sent > 0);
+    assert!(
+        (1..=summary.poses_sent).contains(&summary.poses_accepted),
+        "{} accepted of {} sent",
+        summary.poses_accepted,
+        summary.poses_sent
+    );
+    assert!(
+        (1..=summary.poses_sent).contains(&summary.latency.count),
+        "{:?}",
+        summary.latency
+    );
+    let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
+    let gone = sessions
+        .get_session(v1::GetSessionRequest {
+            session_id: summary.session_id.clone(),
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(gone.code(), Code::NotFound);
+    server.shutdown().await.unwrap();
+}
