@@ -46,11 +46,12 @@ struct ServeArgs {
     /// TLS private key (PEM).
     #[arg(long, value_name = "KEY.pem", requires = "tls_cert")]
     tls_key: Option<PathBuf>,
-    /// Close a session after this many seconds with nobody connected (0: never).
-    #[arg(long, default_value_t = 300.0, value_parser = non_negative_seconds)]
+    /// Close a session after this many seconds with nobody connected (0: never; at
+    /// most 604800, 7 days).
+    #[arg(long, default_value_t = 300.0, value_parser = idle_seconds)]
     idle_timeout: f64,
     /// Poses per second per instrument a station may send.
-    #[arg(long, default_value_t = 2000.0, value_parser = positive_seconds)]
+    #[arg(long, default_value_t = 2000.0, value_parser = positive_rate)]
     max_pose_rate: f64,
     /// Listen on a non-loopback address without TLS and tokens.
     #[arg(long)]
@@ -63,13 +64,11 @@ struct ServeArgs {
     no_recording: bool,
 }
 
-fn non_negative_seconds(s: &str) -> Result<f64, String> {
+/// An idle timeout in seconds, within the range sessions accept.
+fn idle_seconds(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(format!("{s} is not a duration ≥ 0 seconds"))
-    }
+    laparo_server::session::idle_timeout(v)?;
+    Ok(v)
 }
 
 /// Serves until SIGINT or SIGTERM.
@@ -88,8 +87,8 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             .tls_cert
             .zip(args.tls_key)
             .map(|(cert, key)| TlsFiles { cert, key }),
-        idle_timeout: (args.idle_timeout > 0.0)
-            .then(|| std::time::Duration::from_secs_f64(args.idle_timeout)),
+        idle_timeout: laparo_server::session::idle_timeout(args.idle_timeout)
+            .map_err(|e| format!("--idle-timeout: {e}"))?,
         pose_limits: PoseLimits {
             rate_hz: args.max_pose_rate,
             ..PoseLimits::default()
@@ -155,6 +154,15 @@ struct RunArgs {
     /// Write the final deformed volume mesh as VTK XML unstructured grid (.vtu).
     #[arg(long, value_name = "OUT.vtu")]
     export: Option<PathBuf>,
+}
+
+fn positive_rate(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 1e6 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a rate in (0, 1e6] per second"))
+    }
 }
 
 fn positive_seconds(s: &str) -> Result<f64, String> {

@@ -162,8 +162,10 @@ impl Registry {
         for s in &all {
             s.close(reason);
         }
+        // One deadline for all: shutdown waits at most MECHANICS_JOIN_TIMEOUT in all.
+        let deadline = std::time::Instant::now() + crate::session::MECHANICS_JOIN_TIMEOUT;
         for s in &all {
-            s.join();
+            s.join_until(deadline);
         }
     }
 }

@@ -39,14 +39,29 @@ impl Scenes for ScenesService {
         request: Request<v1::ListScenesRequest>,
     ) -> Result<Response<v1::ListScenesResponse>, Status> {
         caller(&request)?;
-        let names: Vec<String> = self.registry.catalog.scenes.keys().cloned().collect();
-        let mut scenes = Vec::with_capacity(names.len());
-        for name in names {
-            if let Some(summary) = self.describe(&name)?.summary {
-                scenes.push(summary);
+        let catalog = &self.registry.catalog;
+        let mut scenes = Vec::with_capacity(catalog.scenes.len());
+        let mut unavailable = catalog.unavailable.clone();
+        for (name, scene) in &catalog.scenes {
+            // A scene whose mesh does not build is reported beside the others.
+            match self.describe(name) {
+                Ok(description) => scenes.extend(description.summary),
+                Err(status) => {
+                    tracing::warn!(scene = %name, "scene not offered: {}", status.message());
+                    unavailable.push(v1::SceneProblem {
+                        name: name.clone(),
+                        file: std::path::Path::new(&scene.source)
+                            .file_name()
+                            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                        error: status.message().to_string(),
+                    });
+                }
             }
         }
-        Ok(Response::new(v1::ListScenesResponse { scenes }))
+        Ok(Response::new(v1::ListScenesResponse {
+            scenes,
+            unavailable,
+        }))
     }
 
     async fn get_scene(

@@ -1,7 +1,6 @@
 //! `Sessions`: create, inspect, list and close.
 
 use std::sync::Arc;
-use std::time::Duration;
 
 use laparo_proto::text::printable;
 use laparo_proto::v1;
@@ -10,6 +9,7 @@ use tonic::{Request, Response, Status};
 
 use super::auth::caller;
 use super::registry::Registry;
+use crate::session::idle_timeout;
 
 pub struct SessionsService {
     pub registry: Arc<Registry>,
@@ -25,13 +25,8 @@ impl Sessions for SessionsService {
         let r = request.get_ref();
         let idle = match r.idle_timeout_s {
             None => self.registry.idle_timeout,
-            Some(0.0) => None,
-            Some(t) if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
-            Some(t) => {
-                return Err(Status::invalid_argument(format!(
-                    "idle_timeout_s must be ≥ 0 and finite (got {t})"
-                )));
-            }
+            Some(t) => idle_timeout(t)
+                .map_err(|e| Status::invalid_argument(format!("idle_timeout_s: {e}")))?,
         };
         let scene = if r.scene.is_empty() {
             "default"

@@ -50,6 +50,8 @@ impl Mechanics {
     /// that starts more than a period late counts as missed, and the schedule
     /// resynchronises instead of bursting to catch up.
     fn run(mut self) {
+        // Closing stops a tick between substeps or CG iterations, however long it is.
+        self.sim.integrator.set_interrupt(self.stop.clone());
         let dt = Duration::from_secs_f64(self.sim.dt);
         let n = self.sim.instruments.len();
         let mut holders = vec![Holder::default(); n];
@@ -80,6 +82,10 @@ impl Mechanics {
                 }
             }
             self.sim.tick();
+            if self.stop.load(Ordering::Relaxed) {
+                // Closing cut the tick short: it is not published.
+                break;
+            }
             let events = &self.events;
             let recorder = self.recorder.as_deref();
             let frame = outputs.produce(
@@ -87,6 +93,10 @@ impl Mechanics {
                 |k| holders[k],
                 |event| super::broadcast_event(recorder, events, event),
             );
+            if let Some(fault) = super::first_non_finite(&frame.surface, &frame.instruments) {
+                self.halt(fault, idle_since);
+                break;
+            }
             let frame = Arc::new(frame);
             if let Some(r) = &self.recorder {
                 let report = r.offer(Item::Frame {
@@ -113,18 +123,27 @@ impl Mechanics {
                 tick_ms.clear();
                 // Once a second: close when nobody has been connected for the idle
                 // timeout.
-                let Some(session) = self.session.upgrade() else {
+                if !self.check_idle(&mut idle_since, started) {
                     break;
-                };
-                if session.stats.connected.load(Ordering::Relaxed) == 0 {
-                    let since = *idle_since.get_or_insert(started);
-                    if session.idle_timeout.is_some_and(|t| started - since >= t) {
-                        session.close("idle timeout");
-                    }
-                } else {
-                    idle_since = None;
                 }
             }
         }
+    }
+
+    /// Closes the session when nobody has been connected to it for its idle timeout
+    /// (`idle_since`: since when nobody is); `false` once the session is gone.
+    pub(super) fn check_idle(&self, idle_since: &mut Option<Instant>, now: Instant) -> bool {
+        let Some(session) = self.session.upgrade() else {
+            return false;
+        };
+        if session.stats.connected.load(Ordering::Relaxed) == 0 {
+            let since = *idle_since.get_or_insert(now);
+            if session.idle_timeout.is_some_and(|t| now - since >= t) {
+                session.close("idle timeout");
+            }
+        } else {
+            *idle_since = None;
+        }
+        true
     }
 }

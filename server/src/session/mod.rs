@@ -18,15 +18,19 @@
 
 pub mod closing;
 mod error;
+mod halt;
+pub mod idle;
 pub mod input;
 mod mechanics;
+#[cfg(test)]
+mod tests_halt;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, Weak};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock, Weak};
 use std::thread::JoinHandle;
-use std::time::{Duration, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
@@ -37,6 +41,8 @@ use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use closing::Closing;
 pub use error::SessionError;
+pub use halt::first_non_finite;
+pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
 pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
 
 /// How a session runs.
@@ -62,6 +68,8 @@ pub struct SessionStats {
     pub poses_rejected: AtomicU64,
     /// Open station and observe streams.
     pub connected: AtomicU64,
+    /// Why the simulation stopped (a non-finite value), once it has.
+    pub simulation_error: OnceLock<String>,
 }
 
 /// Who is in the session.
@@ -95,6 +103,13 @@ pub struct Session {
 
 /// Events a slow stream may fall behind by before it skips (and is told so).
 pub const EVENT_BACKLOG: usize = 1024;
+
+/// How long closing a session (or the server) waits for its mechanics thread: 5 s.
+/// The thread stops within one explicit substep or CG iteration of being told (a few
+/// ms on the largest mesh), then finishes the recording (writes its last chunk and
+/// footer); a thread still busy after that is left to end on its own, so that closing
+/// never hangs.
+pub const MECHANICS_JOIN_TIMEOUT: Duration = Duration::from_secs(5);
 
 impl Session {
     /// Builds the scene and starts its mechanics thread.
@@ -329,12 +344,33 @@ impl Session {
         }
     }
 
-    /// Waits for the mechanics thread to end (after [`close`](Self::close)).
-    pub fn join(&self) {
-        let thread = self.thread.lock().unwrap_or_else(|e| e.into_inner()).take();
-        if let Some(t) = thread {
+    /// Waits for the mechanics thread to end (after [`close`](Self::close)), at most
+    /// [`MECHANICS_JOIN_TIMEOUT`]; whether it ended.
+    pub fn join(&self) -> bool {
+        self.join_until(Instant::now() + MECHANICS_JOIN_TIMEOUT)
+    }
+
+    /// Waits for the mechanics thread to end until `deadline`; whether it ended. A
+    /// thread still running then is left to end on its own (it has been told to stop).
+    pub fn join_until(&self, deadline: Instant) -> bool {
+        let mut slot = self.thread.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(t) = slot.as_ref() else {
+            return true;
+        };
+        while !t.is_finished() {
+            if Instant::now() >= deadline {
+                tracing::warn!(
+                    session = %self.id,
+                    "the mechanics thread has not stopped yet; not waiting for it"
+                );
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if let Some(t) = slot.take() {
             let _ = t.join();
         }
+        true
     }
 
     /// The session as the contract describes it.
@@ -379,6 +415,7 @@ impl Session {
             recorder_dropped: recorder(|r| r.dropped.load(Ordering::Relaxed)),
             recorder_max_backlog: recorder(|r| r.max_backlog.load(Ordering::Relaxed)),
             recorder_max_lag_ms: recorder(|r| r.max_lag_us.load(Ordering::Relaxed)) as f64 * 1e-3,
+            simulation_error: s.simulation_error.get().cloned(),
         }
     }
 

@@ -8,6 +8,8 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::Interrupt;
+
 /// Buffers of one CG solve, allocated once.
 #[derive(Clone, Debug)]
 pub struct CgWorkspace {
@@ -17,6 +19,8 @@ pub struct CgWorkspace {
     q: Vec<Vector3<f64>>,
     /// Inverse diagonal blocks `A_ii⁻¹`, filled by the caller.
     pub precond: Vec<Matrix3<f64>>,
+    /// Read before each iteration: a raised flag ends the solve (unconverged).
+    pub interrupt: Interrupt,
 }
 
 /// When a solve stops.
@@ -48,6 +52,7 @@ impl CgWorkspace {
             q: z.clone(),
             z,
             precond: vec![Matrix3::identity(); n],
+            interrupt: Interrupt::default(),
         }
     }
 
@@ -105,7 +110,13 @@ impl CgWorkspace {
         }
         let mut r_norm = norm(&self.r);
         let mut iterations = 0;
-        while r_norm > goal && iterations < max_iterations {
+        while r_norm > goal && iterations < max_iterations && !self.interrupt.is_raised() {
+            // A residual that has sunk into subnormal numbers is round-off: its
+            // quotients (α = rz/pq, β = rz'/rz) would divide by underflowed values
+            // and blow up to infinity or NaN. It cannot be reduced further.
+            if !rz.is_normal() {
+                break;
+            }
             apply(&self.p, &mut self.q);
             let mut pq = 0.0;
             for i in 0..n {
@@ -114,9 +125,10 @@ impl CgWorkspace {
                 }
                 pq += self.p[i].dot(&self.q[i]);
             }
-            if pq <= 0.0 || !pq.is_finite() {
+            if pq <= 0.0 || !pq.is_normal() {
                 // A is SPD on the free set, so this is a breakdown from round-off at a
-                // converged residual, or a system without enough supports.
+                // converged residual (or one sunk into subnormals, whose quotient would
+                // overflow), or a system without enough supports.
                 break;
             }
             let alpha = rz / pq;

@@ -10,6 +10,9 @@
 //! Poisson ratio or tick length can make it blow up: a stiffer material simply takes
 //! more substeps. Imposed vertices move linearly from where they are to their target
 //! over the tick.
+//!
+//! The interrupt flag is read before each substep: a closing session stops within one
+//! substep, leaving the state partway through the tick.
 
 use nalgebra::Vector3;
 
@@ -32,7 +35,12 @@ pub(super) fn step(
         it.start[i] = state.x[i];
         state.v[i] = (imposed.target(i) - state.x[i]) / dt;
     }
+    let mut taken = substeps;
     for s in 1..=substeps {
+        if it.interrupt.is_raised() {
+            taken = s - 1;
+            break;
+        }
         state.displacement_into(model, &mut it.u);
         model.stiffness.mul(&it.u, &mut it.f);
         for i in 0..state.x.len() {
@@ -51,7 +59,7 @@ pub(super) fn step(
         }
     }
     StepReport {
-        substeps,
+        substeps: taken,
         cg_iterations: 0,
         relative_residual: 0.0,
         converged: true,

@@ -18,11 +18,16 @@ mod energy;
 mod explicit;
 mod implicit;
 mod imposed;
+mod interrupt;
 mod statics;
 
 pub use cg::{CgReport, CgWorkspace, Stop};
 pub use energy::{kinetic_energy, mechanical_energy};
 pub use imposed::Imposed;
+pub use interrupt::Interrupt;
+
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -104,7 +109,8 @@ impl Default for IntegratorConfig {
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepReport {
-    /// Explicit substeps taken (1 for implicit and static).
+    /// Explicit substeps taken (1 for implicit and static); fewer than needed when the
+    /// step was interrupted.
     pub substeps: u32,
     /// Conjugate-gradient iterations (0 for explicit).
     pub cg_iterations: u32,
@@ -131,6 +137,8 @@ pub struct Integrator {
     cg: CgWorkspace,
     /// `h` for which the implicit preconditioner was last built (NaN: never).
     preconditioned_for: f64,
+    /// Raised to end a step early (the state is then partway through the tick).
+    interrupt: Interrupt,
 }
 
 impl Integrator {
@@ -147,7 +155,16 @@ impl Integrator {
             start: vec![Point3::origin(); n],
             cg: CgWorkspace::new(n),
             preconditioned_for: f64::NAN,
+            interrupt: Interrupt::default(),
         }
+    }
+
+    /// Makes every later step stop between substeps or CG iterations once `flag` is
+    /// raised, leaving the state partway through the tick (for a session that is
+    /// closing, so that closing never waits for a long tick).
+    pub fn set_interrupt(&mut self, flag: Arc<AtomicBool>) {
+        self.interrupt = Interrupt::new(flag);
+        self.cg.interrupt = self.interrupt.clone();
     }
 
     /// The settings.
@@ -155,9 +172,21 @@ impl Integrator {
         &self.config
     }
 
-    /// The explicit substeps a tick of `dt` seconds needs: `⌈dt / h_max⌉`.
+    /// The explicit substeps a tick of `dt` seconds needs: `⌈dt / h_max⌉` (saturating;
+    /// scenes are checked against [`explicit_substeps_f64`](Self::explicit_substeps_f64)).
     pub fn explicit_substeps(&self, dt: f64) -> u32 {
-        (dt / self.explicit_h_max).ceil().max(1.0) as u32
+        self.explicit_substeps_f64(dt) as u32
+    }
+
+    /// `⌈dt / h_max⌉` in f64, so that a vanishing stable step shows as a huge (or
+    /// infinite) count rather than a wrapped one.
+    pub fn explicit_substeps_f64(&self, dt: f64) -> f64 {
+        (dt / self.explicit_h_max).ceil().max(1.0)
+    }
+
+    /// The largest stable explicit substep `h_max` for the model, s.
+    pub fn explicit_step_max(&self) -> f64 {
+        self.explicit_h_max
     }
 
     /// Advances `state` by one tick of `dt` seconds (`dt > 0`) under gravity `g`
@@ -216,3 +245,5 @@ impl Integrator {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_interrupt;

@@ -10,9 +10,12 @@
 //! `instruments[1].radius`) and, for syntax and type errors, the line.
 
 mod error;
+mod files;
+pub mod limits;
 mod schema;
 
 pub use error::SceneError;
+pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, read_bounded};
 pub use schema::{
     BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MaterialSpec, MechanicsSpec, MeshSpec,
     RecordingSpec, RegionSpec, Scene,
@@ -28,3 +31,7 @@ pub const BUILTIN_MESHES: &[(&str, &str)] =
 
 #[cfg(test)]
 pub(crate) mod tests;
+#[cfg(test)]
+mod tests_files;
+#[cfg(test)]
+mod tests_limits;

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::SceneError;
+use super::files::{MAX_SCENE_BYTES, read_bounded};
+use super::limits::*;
 use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::integrate::IntegratorKind;
 use crate::engine::local_model::ForceModelKind;
@@ -35,6 +37,12 @@ pub struct Scene {
     /// The folder relative paths are resolved against (the scene file's folder).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
+    /// When set, the mesh file must lie inside this folder (the server's scene
+    /// directory), symlinks followed; `None` (a scene given on the command line, or
+    /// built from a recording): anywhere. Either way only a regular file of at most
+    /// [`super::MAX_MESH_BYTES`] is read.
+    #[serde(skip)]
+    pub mesh_root: Option<PathBuf>,
     /// Where the scene came from, for messages.
     #[serde(skip)]
     pub source: String,
@@ -241,13 +249,29 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Reads and checks a scene file.
+    /// Reads and checks a scene file (a regular file of at most
+    /// [`super::MAX_SCENE_BYTES`]); its mesh is read relative to it.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_from(path, None)
+    }
+
+    /// Reads and checks a scene file of a server's scene directory `dir`: the file and
+    /// its mesh must lie inside `dir` (symlinks followed), as well as being regular
+    /// files within the size limits.
+    pub fn load_served(path: &Path, dir: &Path) -> Result<Scene, SceneError> {
+        let mut scene = Scene::load_from(path, Some(dir))?;
+        scene.mesh_root = Some(dir.to_path_buf());
+        Ok(scene)
+    }
+
+    fn load_from(path: &Path, root: Option<&Path>) -> Result<Scene, SceneError> {
         let source = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io {
+        let io = |message: String| SceneError::Io {
             scene: source.clone(),
-            message: e.to_string(),
-        })?;
+            message,
+        };
+        let bytes = read_bounded(path, root, MAX_SCENE_BYTES).map_err(|e| io(e.to_string()))?;
+        let text = String::from_utf8(bytes).map_err(|e| io(format!("not UTF-8 text: {e}")))?;
         Scene::parse(&text, &source, path.parent())
     }
 
@@ -294,15 +318,25 @@ impl Scene {
         }
         for (k, b) in self.fixed.boxes.iter().enumerate() {
             let path = format!("fixed.boxes[{k}]");
-            if b.min.iter().chain(&b.max).any(|v| !v.is_finite()) {
-                return Err(self.invalid(path, "corners must be finite"));
+            if b.min
+                .iter()
+                .chain(&b.max)
+                .any(|v| !within(*v, MAX_COORDINATE_M))
+            {
+                return Err(self.invalid(
+                    path,
+                    format!("corners must be finite and within ±{MAX_COORDINATE_M} m"),
+                ));
             }
             if (0..3).any(|a| b.min[a] > b.max[a]) {
                 return Err(self.invalid(path, "min must not exceed max on any axis"));
             }
         }
-        if self.gravity.iter().any(|g| !g.is_finite()) {
-            return Err(self.invalid("gravity", "must be finite"));
+        if self.gravity.iter().any(|g| !within(*g, MAX_GRAVITY)) {
+            return Err(self.invalid(
+                "gravity",
+                format!("each component must be finite and within ±{MAX_GRAVITY} m/s²"),
+            ));
         }
         let m = &self.mechanics;
         if !(m.rate_hz.is_finite() && (1.0..=10_000.0).contains(&m.rate_hz)) {
@@ -311,20 +345,33 @@ impl Scene {
                 format!("{} is outside [1, 10000] Hz", m.rate_hz),
             ));
         }
-        if !(m.damping.is_finite() && m.damping >= 0.0) {
+        if !(m.damping.is_finite() && (0.0..=MAX_DAMPING).contains(&m.damping)) {
             return Err(self.invalid(
                 "mechanics.damping",
-                format!("{} must be finite and ≥ 0 (1/s)", m.damping),
+                format!("{} is outside [0, {MAX_DAMPING}] (1/s)", m.damping),
             ));
         }
-        if !(m.cg_tolerance.is_finite() && m.cg_tolerance > 0.0 && m.cg_tolerance < 1.0) {
+        if !(m.cg_tolerance.is_finite()
+            && m.cg_tolerance >= MIN_CG_TOLERANCE
+            && m.cg_tolerance < 1.0)
+        {
             return Err(self.invalid(
                 "mechanics.cg_tolerance",
-                format!("{} is outside (0, 1)", m.cg_tolerance),
+                format!(
+                    "{} is outside [{MIN_CG_TOLERANCE:e}, 1): below {MIN_CG_TOLERANCE:e} \
+                     the residual is round-off that CG cannot reduce",
+                    m.cg_tolerance
+                ),
             ));
         }
-        if m.cg_max_iterations == 0 {
-            return Err(self.invalid("mechanics.cg_max_iterations", "must be at least 1"));
+        if !(1..=MAX_CG_ITERATIONS).contains(&m.cg_max_iterations) {
+            return Err(self.invalid(
+                "mechanics.cg_max_iterations",
+                format!(
+                    "{} is outside [1, {MAX_CG_ITERATIONS}] (the work of a tick is bounded)",
+                    m.cg_max_iterations
+                ),
+            ));
         }
         if self.instruments.len() > MAX_INSTRUMENTS {
             return Err(self.invalid(
@@ -348,20 +395,33 @@ impl Scene {
                     format!("instrument `{}` is declared twice", ins.name),
                 ));
             }
-            self.check_positive(&format!("{path}.radius"), ins.radius)?;
-            self.check_positive(&format!("{path}.length"), ins.length)?;
+            self.check_range(
+                &format!("{path}.radius"),
+                ins.radius,
+                (0.0, MAX_INSTRUMENT_RADIUS_M),
+                "m",
+            )?;
+            self.check_range(
+                &format!("{path}.length"),
+                ins.length,
+                (0.0, MAX_INSTRUMENT_LENGTH_M),
+                "m",
+            )?;
             if ins.radius >= ins.length {
                 return Err(
                     self.invalid(format!("{path}.radius"), "must be smaller than the length")
                 );
             }
-            if ins.trocar.iter().any(|v| !v.is_finite()) {
-                return Err(self.invalid(format!("{path}.trocar"), "must be finite"));
+            if ins.trocar.iter().any(|v| !within(*v, MAX_COORDINATE_M)) {
+                return Err(self.invalid(
+                    format!("{path}.trocar"),
+                    format!("must be finite and within ±{MAX_COORDINATE_M} m"),
+                ));
             }
-            if !(ins.friction.is_finite() && ins.friction >= 0.0) {
+            if !(ins.friction.is_finite() && (0.0..=MAX_FRICTION).contains(&ins.friction)) {
                 return Err(self.invalid(
                     format!("{path}.friction"),
-                    format!("{} must be finite and ≥ 0", ins.friction),
+                    format!("{} is outside [0, {MAX_FRICTION}]", ins.friction),
                 ));
             }
         }
@@ -376,6 +436,21 @@ impl Scene {
         }
     }
 
+    /// `v` finite, `lo < v ≤ hi`.
+    fn check_range(
+        &self,
+        path: &str,
+        v: f64,
+        (lo, hi): (f64, f64),
+        unit: &str,
+    ) -> Result<(), SceneError> {
+        if v.is_finite() && lo < v && v <= hi {
+            Ok(())
+        } else {
+            Err(self.invalid(path, format!("{v} is outside ({lo}, {hi}] {unit}")))
+        }
+    }
+
     fn check_material(
         &self,
         path: &str,
@@ -383,22 +458,38 @@ impl Scene {
         nu: Option<f64>,
         rho: Option<f64>,
     ) -> Result<(), SceneError> {
-        if let Some(e) = e {
-            self.check_positive(&format!("{path}.young_modulus"), e)?;
+        if let Some(e) = e
+            && !(e.is_finite() && (MIN_YOUNG_MODULUS_PA..=MAX_YOUNG_MODULUS_PA).contains(&e))
+        {
+            return Err(self.invalid(
+                format!("{path}.young_modulus"),
+                format!("{e} is outside [{MIN_YOUNG_MODULUS_PA}, {MAX_YOUNG_MODULUS_PA:e}] Pa"),
+            ));
         }
         if let Some(nu) = nu {
-            // ν = 0.5 is incompressible: λ = Eν/((1+ν)(1−2ν)) is infinite. Negative
+            // ν = 0.5 is incompressible: λ = Eν/((1+ν)(1−2ν)) is infinite, and it grows
+            // without bound on the way there (see MAX_POISSON_RATIO). Negative
             // (auxetic) ratios are not tissue.
-            if !(nu.is_finite() && (0.0..0.5).contains(&nu)) {
+            if !(nu.is_finite() && (0.0..=MAX_POISSON_RATIO).contains(&nu)) {
                 return Err(self.invalid(
                     format!("{path}.poisson_ratio"),
-                    format!("{nu} is outside [0, 0.5)"),
+                    format!("{nu} is outside [0, {MAX_POISSON_RATIO}]"),
                 ));
             }
         }
-        if let Some(rho) = rho {
-            self.check_positive(&format!("{path}.density"), rho)?;
+        if let Some(rho) = rho
+            && !(rho.is_finite() && (MIN_DENSITY..=MAX_DENSITY).contains(&rho))
+        {
+            return Err(self.invalid(
+                format!("{path}.density"),
+                format!("{rho} is outside [{MIN_DENSITY}, {MAX_DENSITY:e}] kg/m³"),
+            ));
         }
         Ok(())
     }
+}
+
+/// `v` finite and `|v| ≤ bound`.
+fn within(v: f64, bound: f64) -> bool {
+    v.is_finite() && v.abs() <= bound
 }

@@ -42,6 +42,7 @@ impl Scene {
             ..IntegratorConfig::default()
         };
         let integrator = Integrator::new(config, &model);
+        self.check_tick_work(&integrator, mesh.vertex_count(), 1.0 / m.rate_hz)?;
         let state = State::at_rest(&model);
         let instruments: Vec<Instrument> = self
             .instruments

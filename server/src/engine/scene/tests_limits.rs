@@ -1,0 +1,208 @@
+//! Scenes that validated but could not tick: non-finite physics from values too large
+//! or too small, and ticks that never end. Each is refused, naming the key.
+
+use std::path::Path;
+
+use super::limits::*;
+use super::*;
+
+fn scene_dir() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
+}
+
+const MINIMAL: &str = r#"
+name = "t"
+[mesh]
+file = "builtin:liver.msh"
+scale = 0.03
+[material]
+young_modulus = 3000.0
+poisson_ratio = 0.3
+density = 1000.0
+[fixed]
+nodes = [3, 39, 64]
+"#;
+
+fn parse(text: &str) -> Result<Scene, SceneError> {
+    Scene::parse(text, "test.toml", Some(scene_dir()))
+}
+
+fn build(text: &str) -> Result<(), SceneError> {
+    parse(text)?.build().map(|_| ())
+}
+
+/// The error names `path` and contains `words`.
+fn refused(result: Result<(), SceneError>, path: &str, words: &str) {
+    match result {
+        Err(e @ SceneError::Invalid { .. }) => {
+            let msg = e.to_string();
+            assert!(
+                msg.contains(&format!("`{path}`")) && msg.contains(words),
+                "`{msg}` does not name `{path}` and say `{words}`"
+            );
+        }
+        other => panic!("expected an error naming `{path}`, got {other:?}"),
+    }
+}
+
+#[test]
+fn values_that_overflow_or_underflow_a_tick_are_refused() {
+    let cases = [
+        (
+            "young_modulus = 3000.0",
+            "young_modulus = 1e308",
+            "material.young_modulus",
+        ),
+        (
+            "young_modulus = 3000.0",
+            "young_modulus = 1e-300",
+            "material.young_modulus",
+        ),
+        (
+            "poisson_ratio = 0.3",
+            "poisson_ratio = 0.4999999",
+            "material.poisson_ratio",
+        ),
+        ("density = 1000.0", "density = 1e-300", "material.density"),
+        ("density = 1000.0", "density = 1e300", "material.density"),
+    ];
+    for (from, to, path) in cases {
+        refused(
+            parse(&MINIMAL.replace(from, to)).map(|_| ()),
+            path,
+            "is outside",
+        );
+    }
+    let region = MINIMAL.replace(
+        "density = 1000.0",
+        "density = 1000.0\n[[material.regions]]\ntag = 1\nyoung_modulus = 1e308",
+    );
+    refused(
+        parse(&region).map(|_| ()),
+        "material.regions[0].young_modulus",
+        "is outside",
+    );
+    let more = [
+        ("gravity = [0.0, -1e300, 0.0]", "gravity"),
+        ("[mechanics]\ndamping = 1e300", "mechanics.damping"),
+        (
+            "[mechanics]\ncg_tolerance = 1e-300",
+            "mechanics.cg_tolerance",
+        ),
+        (
+            "[mechanics]\ncg_max_iterations = 4294967295",
+            "mechanics.cg_max_iterations",
+        ),
+        (
+            "[[instruments]]\nname = \"a\"\nradius = 1e300\nlength = 1e301\ntrocar = [0, 0, 0]",
+            "instruments[0].radius",
+        ),
+        (
+            "[[instruments]]\nname = \"a\"\nradius = 0.005\nlength = 0.3\ntrocar = [1e300, 0, 0]",
+            "instruments[0].trocar",
+        ),
+        (
+            "[[instruments]]\nname = \"a\"\nradius = 0.005\nlength = 0.3\ntrocar = [0, 0, 0]\nfriction = 1e300",
+            "instruments[0].friction",
+        ),
+    ];
+    for (extra, path) in more {
+        // `gravity` is a top-level key: it goes before the first table.
+        let text = if extra.starts_with("gravity") {
+            format!("{extra}\n{MINIMAL}")
+        } else {
+            format!("{MINIMAL}\n{extra}\n")
+        };
+        refused(parse(&text).map(|_| ()), path, "");
+    }
+}
+
+#[test]
+fn a_mesh_scaled_beyond_the_stated_sizes_is_refused() {
+    refused(
+        build(&MINIMAL.replace("scale = 0.03", "scale = 1e300")),
+        "mesh.scale",
+        &format!("at most {MAX_COORDINATE_M} m"),
+    );
+    refused(
+        build(&MINIMAL.replace("scale = 0.03", "scale = 1e-300")),
+        "mesh.scale",
+        &format!("at least {MIN_MESH_SIZE_M} m"),
+    );
+}
+
+#[test]
+fn the_bounds_admit_the_shipped_scenes_and_the_extremes_stay_finite() {
+    Scene::default_scene().build().unwrap();
+    Scene::load(&scene_dir().join("sofa-liver.toml"))
+        .unwrap()
+        .build()
+        .unwrap();
+    // Every range at its stiff, heavy, fast end at once: the ticks stay finite.
+    let extreme = format!(
+        "gravity = [{g:?}, {g:?}, -{g:?}]\n{}\n[mechanics]\ndamping = {MAX_DAMPING:?}\n\
+         cg_tolerance = {MIN_CG_TOLERANCE:?}\ncg_max_iterations = 2000\nrate_hz = 1.0\n",
+        MINIMAL
+            .replace("young_modulus = 3000.0", "young_modulus = 1e12")
+            .replace(
+                "poisson_ratio = 0.3",
+                &format!("poisson_ratio = {MAX_POISSON_RATIO}")
+            )
+            .replace("density = 1000.0", "density = 0.01"),
+        g = MAX_GRAVITY
+    );
+    let mut sim = parse(&extreme).unwrap().build().unwrap();
+    for _ in 0..3 {
+        sim.tick();
+        assert!(
+            sim.state.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+            "tick {}",
+            sim.tick
+        );
+    }
+}
+
+#[test]
+fn an_explicit_scene_whose_ticks_need_too_many_substeps_is_refused() {
+    // Within every range, but stiff, light and slow: the stable step is about a
+    // nanosecond, so a 1 s tick would need about 10⁹ substeps.
+    let text = format!(
+        "{}\n[mechanics]\nintegrator = \"explicit\"\nrate_hz = 1.0\n",
+        MINIMAL
+            .replace("young_modulus = 3000.0", "young_modulus = 1e12")
+            .replace("density = 1000.0", "density = 0.01")
+    );
+    refused(build(&text), "mechanics.integrator", "substeps a tick");
+    let e = build(&text).unwrap_err().to_string();
+    assert!(
+        e.contains("implicit") && e.contains("rate_hz") && e.contains("density"),
+        "the error says what to change: {e}"
+    );
+    // The same scene at the default liver material is far within the bound.
+    let fine = text
+        .replace("young_modulus = 1e12", "young_modulus = 3000.0")
+        .replace("density = 0.01", "density = 1000.0");
+    let sim = parse(&fine).unwrap().build().unwrap();
+    let work = sim.integrator.explicit_substeps_f64(sim.dt) * sim.mesh.vertex_count() as f64;
+    assert!(work <= MAX_TICK_WORK, "{work}");
+}
+
+#[test]
+fn a_cg_cap_too_high_for_the_mesh_is_refused() {
+    // liver-5k has 1408 vertices: 10⁵ iterations a tick is 1.4·10⁸ vertex-iterations.
+    let text = format!(
+        "{}\n[mechanics]\ncg_max_iterations = {MAX_CG_ITERATIONS}\n",
+        MINIMAL.replace("builtin:liver.msh", "../meshes/liver-5k.msh")
+    );
+    refused(
+        build(&text),
+        "mechanics.cg_max_iterations",
+        "at most 71022 iterations",
+    );
+    // The same cap is fine on the 181-vertex liver.
+    build(&MINIMAL.replace("scale = 0.03", "scale = 0.03\n").replace(
+        "nodes = [3, 39, 64]",
+        &format!("nodes = [3, 39, 64]\n[mechanics]\ncg_max_iterations = {MAX_CG_ITERATIONS}"),
+    ))
+    .unwrap();
+}
