@@ -18,9 +18,11 @@
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
-use std::os::unix::fs::{FileExt, OpenOptionsExt};
+use std::os::unix::fs::FileExt;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::engine::scene::open_nonblocking;
 
 /// Why bytes could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -76,24 +78,16 @@ impl Source {
     /// FIFO cannot hold the open, and checked on the handle, so that nothing can be
     /// swapped in between the check and the reads.
     pub fn open(path: &Path, follow: Follow) -> std::io::Result<Self> {
-        let mut flags = libc::O_NONBLOCK;
-        if follow == Follow::NoLinks {
-            flags |= libc::O_NOFOLLOW;
-        }
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .custom_flags(flags)
-            .open(path)
-            .map_err(|e| {
-                if e.raw_os_error() == Some(libc::ELOOP) {
-                    std::io::Error::new(
-                        std::io::ErrorKind::InvalidInput,
-                        "it is a symbolic link, which is not followed",
-                    )
-                } else {
-                    e
-                }
-            })?;
+        let file = open_nonblocking(path, follow == Follow::Links).map_err(|e| {
+            if e.raw_os_error() == Some(libc::ELOOP) {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "it is a symbolic link, which is not followed",
+                )
+            } else {
+                e
+            }
+        })?;
         if !file.metadata()?.is_file() {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,

@@ -88,7 +88,7 @@ pub fn read_bounded(path: &Path, root: Option<&Path>, limit: u64) -> Result<Vec<
         None => path.to_path_buf(),
     };
     check_regular(&std::fs::metadata(&path)?, limit)?;
-    let file = open_nonblocking(&path)?;
+    let file = open_nonblocking(&path, true)?;
     check_regular(&file.metadata()?, limit)?;
     let mut bytes = Vec::new();
     file.take(limit + 1).read_to_end(&mut bytes)?;
@@ -144,16 +144,24 @@ fn kind_of(meta: &Metadata) -> &'static str {
     }
 }
 
+/// Opens `path` for reading without blocking on a FIFO (`O_NONBLOCK`), so that a
+/// pipe put in a file's place cannot hold the open; with `follow_links` false a
+/// final symbolic link is refused (`O_NOFOLLOW`: the open fails with `ELOOP`).
+/// Shared by scene and mesh files and by recordings.
 #[cfg(unix)]
-fn open_nonblocking(path: &Path) -> std::io::Result<File> {
+pub fn open_nonblocking(path: &Path, follow_links: bool) -> std::io::Result<File> {
     use std::os::unix::fs::OpenOptionsExt;
+    let mut flags = libc::O_NONBLOCK;
+    if !follow_links {
+        flags |= libc::O_NOFOLLOW;
+    }
     std::fs::OpenOptions::new()
         .read(true)
-        .custom_flags(libc::O_NONBLOCK)
+        .custom_flags(flags)
         .open(path)
 }
 
 #[cfg(not(unix))]
-fn open_nonblocking(path: &Path) -> std::io::Result<File> {
+pub fn open_nonblocking(path: &Path, _follow_links: bool) -> std::io::Result<File> {
     File::open(path)
 }

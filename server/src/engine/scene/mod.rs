@@ -15,7 +15,7 @@ pub mod limits;
 mod schema;
 
 pub use error::SceneError;
-pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, read_bounded};
+pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, open_nonblocking, read_bounded};
 pub use schema::{
     BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MaterialSpec, MechanicsSpec, MeshSpec,
     RecordingSpec, RegionSpec, Scene,
