@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use laparo_proto::v1;
+use laparo_proto::v1::sessions_client::SessionsClient;
 use laparo_server::service::ServeConfig;
 use tonic::transport::Channel;
 
@@ -31,6 +32,41 @@ pub async fn recording_server(test: &str) -> (TestServer, Channel, PathBuf) {
     (server, ch, dir)
 }
 
+/// Creates a recorded session of the default scene.
+pub async fn create_recorded(sessions: &mut SessionsClient<Channel>) -> v1::SessionInfo {
+    sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+}
+
+/// Waits (up to [`WAIT`]) until session `id` has run `at_least_s` of simulated
+/// time.
+pub async fn run_until(sessions: &mut SessionsClient<Channel>, id: &str, at_least_s: f64) {
+    let get = v1::GetSessionRequest {
+        session_id: id.to_string(),
+    };
+    tokio::time::timeout(WAIT, async {
+        while sessions
+            .get_session(get.clone())
+            .await
+            .unwrap()
+            .into_inner()
+            .sim_time_s
+            < at_least_s
+        {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    })
+    .await
+    .expect("the session runs");
+}
+
 /// A session recorded through the server.
 pub struct Recorded {
     /// The recording's path.
@@ -45,16 +81,8 @@ pub struct Recorded {
 /// `at_least_s` of simulated time, leaves, and the session is closed (which
 /// finishes the file).
 pub async fn record_press(ch: &Channel, dir: &Path, at_least_s: f64) -> Recorded {
-    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut sessions = SessionsClient::new(ch.clone());
+    let info = create_recorded(&mut sessions).await;
     let file = dir.join(
         info.recording_file
             .clone()
@@ -70,23 +98,7 @@ pub async fn record_press(ch: &Channel, dir: &Path, at_least_s: f64) -> Recorded
         .await
         .is_some()
     );
-    let get = v1::GetSessionRequest {
-        session_id: info.session_id.clone(),
-    };
-    tokio::time::timeout(WAIT, async {
-        while sessions
-            .get_session(get.clone())
-            .await
-            .unwrap()
-            .into_inner()
-            .sim_time_s
-            < at_least_s
-        {
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-    })
-    .await
-    .expect("the session runs");
+    run_until(&mut sessions, &info.session_id, at_least_s).await;
     drop(a);
     let closed = sessions
         .close_session(v1::CloseSessionRequest {

@@ -188,15 +188,7 @@ async fn stations_and_observers_joining_after_the_recorder_failed_are_told() {
     .await;
     let ch = server.channel().await;
     let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let info = create_recorded(&mut sessions).await;
     // Wait until the failure is known (nobody was connected to hear it live).
     let error = tokio::time::timeout(WAIT, async {
         loop {

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use laparo_proto::v1;
 use laparo_server::service::ServeConfig;
+use laparo_tests::recordings::{create_recorded, recording_server, recordings_dir, run_until};
 use laparo_tests::server::TestServer;
 use tonic::Code;
 use tonic::transport::Channel;
@@ -16,60 +17,17 @@ use tonic::transport::Channel;
 /// Longest any step here may take before the test fails rather than hangs.
 const WAIT: Duration = Duration::from_secs(60);
 
-/// A fresh directory for a test's recordings.
-fn fresh_dir(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("laparo-hard-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-/// A server recording into a fresh directory named after `test`.
-async fn recording_server(test: &str) -> (TestServer, Channel, PathBuf) {
-    let dir = fresh_dir(test);
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
-    (server, ch, dir)
-}
-
 /// Records a session of the default scene through the server until it has run
 /// `at_least_s` of simulated time, closes it (which finishes the file), and
 /// returns the file's path.
 async fn record(ch: &Channel, dir: &Path, at_least_s: f64) -> PathBuf {
     let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let info = create_recorded(&mut sessions).await;
     let file = dir.join(
         info.recording_file
             .expect("a recorded session names its file"),
     );
-    let get = v1::GetSessionRequest {
-        session_id: info.session_id.clone(),
-    };
-    tokio::time::timeout(WAIT, async {
-        while sessions
-            .get_session(get.clone())
-            .await
-            .unwrap()
-            .into_inner()
-            .sim_time_s
-            < at_least_s
-        {
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
-    })
-    .await
-    .expect("the session runs");
+    run_until(&mut sessions, &info.session_id, at_least_s).await;
     sessions
         .close_session(v1::CloseSessionRequest {
             session_id: info.session_id,
@@ -339,7 +297,7 @@ fn has_control(text: &str) -> bool {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escapes() {
     // A scene whose name is terminal escapes: it reaches the recording's metadata.
-    let scenes = fresh_dir("escape-scenes");
+    let scenes = recordings_dir("escape-scenes");
     std::fs::create_dir_all(&scenes).unwrap();
     let evil = "evil\u{1b}]0;owned\u{7}\u{1b}[2J";
     let toml = include_str!("../../server/scenes/default.toml").replace(
@@ -347,7 +305,7 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
         "name = \"evil\\u001b]0;owned\\u0007\\u001b[2J\"",
     );
     std::fs::write(scenes.join("evil.toml"), toml).unwrap();
-    let dir = fresh_dir("escape");
+    let dir = recordings_dir("escape");
     let server = TestServer::start(ServeConfig {
         recordings: Some(dir.clone()),
         scene_dir: Some(scenes.clone()),
@@ -377,7 +335,7 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
 
     // Beside it: a link to a recording outside the directory, links to a device
     // and to a FIFO, a FIFO, a directory, and a file named with escapes.
-    let outside = fresh_dir("escape-outside");
+    let outside = recordings_dir("escape-outside");
     std::fs::create_dir_all(&outside).unwrap();
     std::fs::copy(dir.join(&recorded), outside.join("secret.mcap")).unwrap();
     let link = |to: &Path, name: &str| std::os::unix::fs::symlink(to, dir.join(name)).unwrap();
