@@ -8,8 +8,7 @@
 //! promises.
 
 use std::io::{BufRead, BufReader};
-use std::net::TcpListener;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use laparo_proto::v1;
@@ -17,37 +16,8 @@ use laparo_server::recording::{ReadError, Recording, recover, resimulate};
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 
-/// Kills the server if the test fails before it does.
-struct Server(Child);
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-async fn connect(url: &str, deadline: Instant) -> tonic::transport::Channel {
-    loop {
-        match tonic::transport::Endpoint::from_shared(url.to_string())
-            .unwrap()
-            .connect()
-            .await
-        {
-            Ok(ch) => return ch,
-            Err(e) if Instant::now() > deadline => panic!("server never listened: {e}"),
-            Err(_) => tokio::time::sleep(Duration::from_millis(20)).await,
-        }
-    }
-}
+mod common;
+use common::process::{Server, connect, free_port};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverable() {

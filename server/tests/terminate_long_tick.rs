@@ -1,44 +1,14 @@
 //! SIGTERM to a real `laparo-server` while a session runs ticks as long as a scene may
 //! make them: the process ends, and the session's recording is finished.
 
-use std::net::TcpListener;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use laparo_proto::v1;
 use laparo_server::recording::Recording;
 
-/// Kills the server if the test fails before it ends.
-struct Server(Child);
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-async fn connect(url: &str, deadline: Instant) -> tonic::transport::Channel {
-    loop {
-        match tonic::transport::Endpoint::from_shared(url.to_string())
-            .unwrap()
-            .connect()
-            .await
-        {
-            Ok(ch) => return ch,
-            Err(e) if Instant::now() > deadline => panic!("server never listened: {e}"),
-            Err(_) => tokio::time::sleep(Duration::from_millis(20)).await,
-        }
-    }
-}
+mod common;
+use common::process::{Server, connect, free_port};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_ends_a_server_whose_session_runs_the_longest_ticks_a_scene_may_ask() {
