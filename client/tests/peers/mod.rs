@@ -5,7 +5,7 @@
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::process::{Command, Output, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// How long a client may take before it is killed and the test fails: far above
@@ -69,13 +69,23 @@ pub struct Run {
 /// Runs `laparo args…` to its end, killing it (and failing) past [`LIMIT`].
 pub fn laparo(args: &[&str]) -> Run {
     let start = Instant::now();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_laparo"))
+    finish(start_laparo(args), start)
+}
+
+/// Starts `laparo args…`, its output piped.
+pub fn start_laparo(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_laparo"))
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("laparo runs");
+        .expect("laparo runs")
+}
+
+/// Waits for `child`, started at `start`, to end; kills it (and fails) past
+/// [`LIMIT`].
+pub fn finish(mut child: Child, start: Instant) -> Run {
     loop {
         if child
             .try_wait()
@@ -87,7 +97,7 @@ pub fn laparo(args: &[&str]) -> Run {
         if start.elapsed() > LIMIT {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("laparo {args:?} still ran after {LIMIT:?}");
+            panic!("laparo still ran after {LIMIT:?}");
         }
         std::thread::sleep(Duration::from_millis(20));
     }
