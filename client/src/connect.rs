@@ -5,15 +5,38 @@
 //! This build carries no system trust roots, so an `https` URL needs the CA
 //! certificate (PEM) that signed the server's certificate; [`connect`] says so rather
 //! than failing later in the TLS handshake.
+//!
+//! # Never waiting for ever
+//!
+//! [`connect`] makes the connection and its first exchange within one time limit
+//! ([`DEFAULT_CONNECT_TIMEOUT`], `--connect-timeout`): TCP, TLS, HTTP/2 and a call to
+//! the standard health service asking for `laparo.v1.Station`. A peer that accepts
+//! and stays silent, answers in HTTP/1, or serves gRPC without laparo is told apart
+//! here, in words ([`failure`]). Once connected, HTTP/2 keep-alive pings
+//! ([`KEEPALIVE_INTERVAL`], [`KEEPALIVE_TIMEOUT`]) end any call on a server that died
+//! or froze, and unary calls carry [`CALL_TIMEOUT`] ([`unary`]).
 
-use std::path::{Path, PathBuf};
+use std::error::Error as _;
+use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
-use tonic::metadata::{AsciiMetadataValue, MetadataValue};
-use tonic::service::Interceptor;
+use tonic::Request;
 use tonic::service::interceptor::InterceptedService;
-use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
-use tonic::{Request, Status};
+use tonic::transport::{Channel, Endpoint};
+use tonic_health::pb::HealthCheckRequest;
+use tonic_health::pb::health_client::HealthClient;
+
+mod auth;
+pub mod dial;
+pub mod failure;
+mod tls;
+
+#[cfg(test)]
+mod tests;
+
+pub use auth::{BearerAuth, InvalidToken};
+pub use failure::{describe_status, error_chain};
 
 use crate::proto::v1::observe_client::ObserveClient;
 use crate::proto::v1::recordings_client::RecordingsClient;
@@ -21,8 +44,32 @@ use crate::proto::v1::scenes_client::ScenesClient;
 use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::station_client::StationClient;
 
-/// How long [`connect`] waits for the TCP (and TLS) connection by default.
-pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long [`connect`] waits by default for the connection and the server's first
+/// answer (TCP, TLS, HTTP/2 and the health check together). A laparo server answers
+/// the health check in milliseconds on a LAN, even while it builds a session; 5 s
+/// leaves room for a slow link and TLS while a user at a silent address learns it
+/// soon.
+pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How long a connection may stay without receiving anything before an HTTP/2 PING
+/// asks whether the server is still there. A live session streams frames many times
+/// a second, so a ping is only sent to a server that went quiet.
+pub const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(10);
+
+/// How long the answer to a keep-alive PING may take before the connection is
+/// declared dead and every call on it ends: a server's HTTP/2 layer answers pings
+/// whatever its sessions do, so only a dead, frozen or cut-off server misses this.
+pub const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How long a unary call (create, get or close a session, list recordings) may wait
+/// for its answer: creating a session builds its scene, which takes well under a
+/// second for the shipped scenes and a few seconds for the largest meshes a scene
+/// may name; 30 s says "the server is stuck", not "the server is slow".
+pub const CALL_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The service the health check asks for: a server that does not know it is not a
+/// laparo server.
+pub const PROBED_SERVICE: &str = "laparo.v1.Station";
 
 /// Where the server is and how to authenticate to it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -34,7 +81,7 @@ pub struct ConnectConfig {
     pub token: Option<String>,
     /// CA certificate (PEM file) to trust for an `https` URL.
     pub ca_file: Option<PathBuf>,
-    /// How long to wait for the connection.
+    /// How long to wait for the connection and the server's first answer.
     pub connect_timeout: Duration,
 }
 
@@ -47,6 +94,18 @@ impl ConnectConfig {
             ca_file: None,
             connect_timeout: DEFAULT_CONNECT_TIMEOUT,
         }
+    }
+}
+
+impl ConnectConfig {
+    /// These settings with the connect timeout cut to `limit` when one is given: a
+    /// run of bounded duration is bounded connecting included.
+    pub fn within(&self, limit: Option<Duration>) -> ConnectConfig {
+        let mut config = self.clone();
+        if let Some(limit) = limit {
+            config.connect_timeout = config.connect_timeout.min(limit);
+        }
+        config
     }
 }
 
@@ -69,17 +128,45 @@ pub enum ConnectError {
     #[error("server URL {url:?} is plain http: a CA certificate only applies to https")]
     CaWithoutTls { url: String },
     /// The CA certificate file cannot be read.
-    #[error("CA certificate {path:?} for {url:?} cannot be read: {source}")]
+    #[error("CA certificate {} for {url} cannot be read: {source}", path.display())]
     ReadCa {
         url: String,
         path: PathBuf,
         source: std::io::Error,
     },
-    /// The TLS configuration was refused.
-    #[error("TLS configuration for {url:?} refused: {detail}")]
+    /// The CA certificate file holds no certificate.
+    #[error("{}: not a PEM certificate: {reason}", path.display())]
+    BadCa { path: PathBuf, reason: String },
+    /// The TLS configuration was refused, or the TLS handshake failed.
+    #[error("TLS with {url} failed: {detail}")]
     Tls { url: String, detail: String },
-    /// The server could not be reached.
-    #[error("cannot connect to {url:?}: {detail}")]
+    /// Nothing listens at the address.
+    #[error("cannot connect to {url}: connection refused (is the server running, on this port?)")]
+    Refused { url: String },
+    /// The TCP connection was not made in time.
+    #[error(
+        "cannot connect to {url}: no answer within {} s (is the address right, the host up, the port open?)",
+        after.as_secs_f64()
+    )]
+    NoConnection { url: String, after: Duration },
+    /// The peer accepted the connection and said nothing in time.
+    #[error("no answer from {url} within {} s: is it a laparo server?", after.as_secs_f64())]
+    NoAnswer { url: String, after: Duration },
+    /// The peer accepted the connection and closed it without a word.
+    #[error("{url} closed the connection without answering: is it a laparo server?")]
+    Closed { url: String },
+    /// The peer speaks something else than gRPC (HTTP/1, TLS where plain HTTP/2 was
+    /// expected, or HTTP/2 without gRPC).
+    #[error("{url} does not speak gRPC (it answered {answered})")]
+    NotGrpc { url: String, answered: String },
+    /// A plain server behind an `https` URL.
+    #[error("{url} does not speak TLS (it answered {answered}): use an http URL")]
+    NotTls { url: String, answered: String },
+    /// A gRPC server without the laparo services.
+    #[error("{url} speaks gRPC but does not serve {PROBED_SERVICE}: is it a laparo server?")]
+    NotLaparo { url: String },
+    /// The server could not be reached for another reason.
+    #[error("cannot connect to {url}: {detail}")]
     Unreachable { url: String, detail: String },
     /// The token cannot be sent in an HTTP header.
     #[error("the bearer token for {url:?} cannot be sent in an HTTP header (visible ASCII only)")]
@@ -130,33 +217,135 @@ impl Connection {
     }
 }
 
-/// Connects to the server of `config` and returns the connection once the channel is
-/// up (the connection is made here, not at the first call, so that a wrong address
-/// is reported as such).
+/// A unary request carrying [`CALL_TIMEOUT`]: the call ends with an error rather
+/// than waiting for ever on a stuck server (the server is told the deadline too).
+pub fn unary<T>(message: T) -> Request<T> {
+    let mut request = Request::new(message);
+    request.set_timeout(CALL_TIMEOUT);
+    request
+}
+
+/// Where [`connect`] failed.
+enum Stage {
+    /// Making the TCP, TLS and HTTP/2 connection.
+    Connect(tonic::transport::Error),
+    /// The health check, on a connection made.
+    Check(tonic::Status),
+}
+
+/// Connects to the server of `config` and returns the connection once the server
+/// answered the health check, all within `config.connect_timeout` (the connection
+/// is made here, not at the first call, so that a wrong address or a peer that is
+/// not a laparo server is reported as such); see the [module documentation](self).
 pub async fn connect(config: &ConnectConfig) -> Result<Connection, ConnectError> {
     let url = config.url.clone();
     let auth = BearerAuth::new(config.token.as_deref())
         .map_err(|_| ConnectError::InvalidToken { url: url.clone() })?;
-    let endpoint = endpoint(config).await?;
-    let channel = endpoint
-        .connect()
-        .await
-        .map_err(|e| ConnectError::Unreachable {
-            url: url.clone(),
-            detail: error_chain(&e),
-        })?;
-    Ok(Connection { url, channel, auth })
+    let endpoint = endpoint(config)?;
+    let tls = endpoint.uri().scheme_str() == Some("https");
+    let dial = dial::Dial::default();
+    let seen = Arc::clone(&dial.seen);
+    let attempt = async {
+        let channel = endpoint
+            .connect_with_connector(dial)
+            .await
+            .map_err(Stage::Connect)?;
+        let answer = HealthClient::new(channel.clone())
+            .check(HealthCheckRequest {
+                service: PROBED_SERVICE.into(),
+            })
+            .await;
+        match answer {
+            Ok(_) => Ok(channel),
+            Err(status) => match checked(status) {
+                Ok(()) => Ok(channel),
+                Err(stage) => Err(stage),
+            },
+        }
+    };
+    let failed = match tokio::time::timeout(config.connect_timeout, attempt).await {
+        Ok(Ok(channel)) => return Ok(Connection { url, channel, auth }),
+        Ok(Err(stage)) => stage,
+        Err(_) => {
+            let after = config.connect_timeout;
+            return Err(match failure::peer_answer(&seen.first_bytes(), tls) {
+                Some(answered) if tls => ConnectError::NotTls { url, answered },
+                Some(answered) => ConnectError::NotGrpc { url, answered },
+                None if seen.connected() => ConnectError::NoAnswer { url, after },
+                None => ConnectError::NoConnection { url, after },
+            });
+        }
+    };
+    Err(match failed {
+        Stage::Check(status) if status.source().is_none() => {
+            // A gRPC answer that is not the health service's: `checked` said which.
+            if status.code() == tonic::Code::NotFound {
+                ConnectError::NotLaparo { url }
+            } else {
+                ConnectError::NotGrpc {
+                    url,
+                    answered: format!("HTTP/2 without gRPC: {}", status.message()),
+                }
+            }
+        }
+        Stage::Check(status) => transport_failure(url, tls, &seen, &status, false),
+        Stage::Connect(e) => transport_failure(url, tls, &seen, &e, true),
+    })
 }
 
-/// The endpoint for `config`: URL checked, timeouts set, TLS configured for `https`.
-async fn endpoint(config: &ConnectConfig) -> Result<Endpoint, ConnectError> {
+/// Whether the health check's error status still shows a laparo server: any status
+/// the peer sent proves it speaks gRPC and answers (a server without the health
+/// service says UNIMPLEMENTED), except NOT_FOUND (the health service does not know
+/// laparo) and a status tonic made up from a plain HTTP/2 answer.
+fn checked(status: tonic::Status) -> Result<(), Stage> {
+    let made_up = status.message().starts_with("grpc-status header missing");
+    if status.source().is_some() || made_up || status.code() == tonic::Code::NotFound {
+        Err(Stage::Check(status))
+    } else {
+        Ok(())
+    }
+}
+
+/// Words for a connection that failed below gRPC; `connecting` when it failed while
+/// the connection was being made (for `https`, that is the TLS handshake).
+fn transport_failure(
+    url: String,
+    tls: bool,
+    seen: &dial::Seen,
+    error: &(dyn std::error::Error + 'static),
+    connecting: bool,
+) -> ConnectError {
+    let first = seen.first_bytes();
+    if let Some(answered) = failure::peer_answer(&first, tls) {
+        return if tls {
+            ConnectError::NotTls { url, answered }
+        } else {
+            ConnectError::NotGrpc { url, answered }
+        };
+    }
+    let detail = error_chain(error);
+    match failure::io_kind(error) {
+        Some(std::io::ErrorKind::ConnectionRefused) => ConnectError::Refused { url },
+        _ if !seen.connected() => ConnectError::Unreachable { url, detail },
+        _ if tls && connecting => ConnectError::Tls { url, detail },
+        _ if first.is_empty() => ConnectError::Closed { url },
+        _ => ConnectError::Unreachable { url, detail },
+    }
+}
+
+/// The endpoint for `config`: URL checked, keep-alive set, TLS configured for
+/// `https`. Nothing is connected yet.
+fn endpoint(config: &ConnectConfig) -> Result<Endpoint, ConnectError> {
     let url = &config.url;
     let endpoint = Endpoint::from_shared(url.clone()).map_err(|e| ConnectError::InvalidUrl {
         url: url.clone(),
         reason: error_chain(&e),
     })?;
+    // The connect timeout also bounds reconnecting after a lost connection.
     let endpoint = endpoint
         .connect_timeout(config.connect_timeout)
+        .http2_keep_alive_interval(KEEPALIVE_INTERVAL)
+        .keep_alive_timeout(KEEPALIVE_TIMEOUT)
         .tcp_nodelay(true);
     match endpoint.uri().scheme_str() {
         Some("http") => {
@@ -170,122 +359,12 @@ async fn endpoint(config: &ConnectConfig) -> Result<Endpoint, ConnectError> {
                 .ca_file
                 .as_ref()
                 .ok_or_else(|| ConnectError::MissingCa { url: url.clone() })?;
-            let tls = tls_config(url, path)?;
+            let tls = tls::tls_config(url, path)?;
             endpoint.tls_config(tls).map_err(|e| ConnectError::Tls {
                 url: url.clone(),
                 detail: error_chain(&e),
             })
         }
         _ => Err(ConnectError::UnsupportedScheme { url: url.clone() }),
-    }
-}
-
-/// A TLS configuration trusting the CA certificate in the PEM file at `path`.
-fn tls_config(url: &str, path: &Path) -> Result<ClientTlsConfig, ConnectError> {
-    let pem = std::fs::read(path).map_err(|source| ConnectError::ReadCa {
-        url: url.to_owned(),
-        path: path.to_owned(),
-        source,
-    })?;
-    Ok(ClientTlsConfig::new().ca_certificate(Certificate::from_pem(pem)))
-}
-
-/// An error and its sources, joined with `: ` (tonic's transport errors say little
-/// at the top level).
-pub fn error_chain(error: &dyn std::error::Error) -> String {
-    let mut out = error.to_string();
-    let mut source = error.source();
-    while let Some(e) = source {
-        let s = e.to_string();
-        if !out.ends_with(&s) {
-            out.push_str(": ");
-            out.push_str(&s);
-        }
-        source = e.source();
-    }
-    out
-}
-
-/// Adds `authorization: Bearer <token>` to every request when a token is given, and
-/// leaves requests untouched otherwise.
-#[derive(Clone, Debug, Default)]
-pub struct BearerAuth {
-    header: Option<AsciiMetadataValue>,
-}
-
-/// A token that cannot be carried in an HTTP header.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("the bearer token cannot be sent in an HTTP header (visible ASCII only)")]
-pub struct InvalidToken;
-
-impl BearerAuth {
-    /// An interceptor sending `token`, or nothing for `None`.
-    pub fn new(token: Option<&str>) -> Result<Self, InvalidToken> {
-        let header = token
-            .map(|t| MetadataValue::try_from(format!("Bearer {t}")).map_err(|_| InvalidToken))
-            .transpose()?;
-        Ok(BearerAuth { header })
-    }
-}
-
-impl Interceptor for BearerAuth {
-    fn call(&mut self, mut request: Request<()>) -> Result<Request<()>, Status> {
-        if let Some(value) = &self.header {
-            request
-                .metadata_mut()
-                .insert("authorization", value.clone());
-        }
-        Ok(request)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bearer_auth_adds_the_header_when_a_token_is_given() {
-        let mut auth = BearerAuth::new(Some("s3cret")).unwrap();
-        let request = auth.call(Request::new(())).unwrap();
-        let value = request.metadata().get("authorization").unwrap();
-        assert_eq!(value.to_str().unwrap(), "Bearer s3cret");
-    }
-
-    #[test]
-    fn bearer_auth_without_token_adds_nothing() {
-        let mut auth = BearerAuth::new(None).unwrap();
-        let request = auth.call(Request::new(())).unwrap();
-        assert!(request.metadata().get("authorization").is_none());
-    }
-
-    #[test]
-    fn a_token_with_a_newline_is_refused() {
-        assert_eq!(BearerAuth::new(Some("a\nb")).unwrap_err(), InvalidToken);
-    }
-
-    #[tokio::test]
-    async fn urls_are_checked_before_connecting() {
-        let bad = |url: &'static str| async move {
-            let mut c = ConnectConfig::new(url);
-            c.connect_timeout = Duration::from_millis(100);
-            connect(&c).await.unwrap_err()
-        };
-        assert!(matches!(
-            bad("ftp://127.0.0.1:1").await,
-            ConnectError::UnsupportedScheme { .. }
-        ));
-        assert!(matches!(
-            bad("https://127.0.0.1:1").await,
-            ConnectError::MissingCa { .. }
-        ));
-        assert!(matches!(
-            bad("not a url").await,
-            ConnectError::InvalidUrl { .. }
-        ));
-        let mut c = ConnectConfig::new("https://127.0.0.1:1");
-        c.ca_file = Some("/nonexistent/ca.pem".into());
-        let e = connect(&c).await.unwrap_err();
-        assert!(matches!(e, ConnectError::ReadCa { .. }));
-        assert!(e.to_string().contains("https://127.0.0.1:1"), "{e}");
     }
 }

@@ -11,6 +11,10 @@
 //! `Sessions.GetSession` at the end, the session's missed mechanics deadlines, tick
 //! time percentiles and accepted and rejected pose counts. Without a session id a
 //! session of the server's default scene is created and closed at the end.
+//!
+//! Nothing waits for ever: each connection is made within its connect timeout,
+//! each join and unary call within [`CALL_TIMEOUT`], and each station stays its
+//! duration and then leaves within [`LEAVE_GRACE`](crate::station::LEAVE_GRACE).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -20,14 +24,14 @@ use std::time::{Duration, Instant};
 use tokio::task::JoinSet;
 use tokio::time::MissedTickBehavior;
 
-use crate::connect::{AuthChannel, ConnectConfig, Connection, connect};
+use crate::connect::{AuthChannel, CALL_TIMEOUT, ConnectConfig, Connection, connect, unary};
 use crate::gestures::default_press_for;
 use crate::latency::{LatencyHistogram, LatencySummary};
 use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::{
     CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Role, SessionInfo,
 };
-use crate::station::{Intake, Link, Poses, Received, Sent, StationError};
+use crate::station::{Intake, Link, Poses, Received, Sent, StationError, answered};
 
 /// What [`run_load`] does.
 #[derive(Clone, Debug, PartialEq)]
@@ -255,9 +259,9 @@ pub async fn run_load(
     };
     add_up(&mut summary, results);
     let info = sessions
-        .get_session(GetSessionRequest {
+        .get_session(unary(GetSessionRequest {
             session_id: session_id.clone(),
-        })
+        }))
         .await?
         .into_inner();
     summary.missed_deadlines = info.missed_deadlines;
@@ -271,10 +275,10 @@ pub async fn run_load(
     summary.recorder_max_lag_ms = info.recorder_max_lag_ms;
     if created {
         sessions
-            .close_session(CloseSessionRequest {
+            .close_session(unary(CloseSessionRequest {
                 session_id,
                 reason: "load run finished".into(),
-            })
+            }))
             .await?;
     }
     Ok(summary)
@@ -289,20 +293,20 @@ async fn open_session(
     Ok(match &config.session {
         Some(id) => (
             sessions
-                .get_session(GetSessionRequest {
+                .get_session(unary(GetSessionRequest {
                     session_id: id.clone(),
-                })
+                }))
                 .await?
                 .into_inner(),
             false,
         ),
         None => (
             sessions
-                .create_session(CreateSessionRequest {
+                .create_session(unary(CreateSessionRequest {
                     scene: config.scene.clone().unwrap_or_default(),
                     idle_timeout_s: None,
                     record: config.record,
-                })
+                }))
                 .await?
                 .into_inner(),
             true,
@@ -406,7 +410,7 @@ async fn load_station(
     duration: Duration,
     counters: &Counters,
 ) -> Result<StationLoad, StationError> {
-    let mut link = Link::join(connection, open).await?;
+    let mut link = answered("the join", CALL_TIMEOUT, Link::join(connection, open)).await?;
     counters.joined.fetch_add(1, Ordering::Relaxed);
     let t0 = Instant::now();
     let scene = link.joined.scene.clone().unwrap_or_default();

@@ -15,7 +15,10 @@ use crate::proto::v1::{
     ContactState, Event, EventKind, InstrumentState, ObserveRequest, ReplayRequest,
     SceneDescription, observe_message,
 };
-use crate::station::{StationError, StopSignal, TickCounter, after, force_magnitude, when_stopped};
+use crate::station::{
+    StationError, StopSignal, TickCounter, after, answered, call_limit, force_magnitude,
+    when_stopped,
+};
 
 /// How often [`ObserveReport::Status`] is given.
 pub const STATUS_PERIOD: Duration = Duration::from_secs(1);
@@ -168,7 +171,8 @@ fn update(line: &mut StatusLine, state: &InstrumentState) {
 
 /// Watches a session, reporting the scene, a status line every second and the
 /// events; see the [module documentation](self). A stream ended by the server with a
-/// gRPC status is returned as [`StationError::Status`].
+/// gRPC status is returned as [`StationError::Status`]. The configured duration
+/// bounds the whole run, connecting included.
 pub async fn run_observe(
     mut config: ObserveConfig,
     mut on_report: impl FnMut(ObserveReport<'_>),
@@ -183,17 +187,28 @@ pub async fn run_observe(
             expected: "finite and > 0",
         });
     }
-    let connection = connect(&config.connect).await?;
+    let started = Instant::now();
+    let duration = config.duration;
+    let connection = connect(&config.connect.within(duration)).await?;
+    let limit = call_limit(started, duration);
     let mut stream = match config.replay.take() {
-        Some(request) => connection.recordings().replay(request).await?,
+        Some(request) => {
+            let mut recordings = connection.recordings();
+            answered("the replay", limit, async move {
+                Ok(recordings.replay(request).await?)
+            })
+            .await?
+        }
         None => {
-            connection
-                .observe()
-                .observe(ObserveRequest {
-                    session_id: config.session_id.clone(),
-                    frame_rate_hz: config.frame_rate_hz,
-                })
-                .await?
+            let mut observe = connection.observe();
+            let request = ObserveRequest {
+                session_id: config.session_id.clone(),
+                frame_rate_hz: config.frame_rate_hz,
+            };
+            answered("the observe call", limit, async move {
+                Ok(observe.observe(request).await?)
+            })
+            .await?
         }
     }
     .into_inner();
@@ -204,8 +219,7 @@ pub async fn run_observe(
     let mut status_tick =
         tokio::time::interval_at(tokio::time::Instant::now() + STATUS_PERIOD, STATUS_PERIOD);
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let duration = config.duration;
-    let deadline = after(duration);
+    let deadline = after(duration.map(|d| d.saturating_sub(started.elapsed())));
     tokio::pin!(deadline);
     let stop = when_stopped(config.stop.take());
     tokio::pin!(stop);

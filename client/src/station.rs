@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 
 use tokio::time::MissedTickBehavior;
 
-use crate::connect::connect;
+use crate::connect::{CALL_TIMEOUT, connect};
 use crate::haptics::Trajectory;
 use crate::proto::v1::{self, InstrumentDescription, JoinRequest, SceneDescription};
 
@@ -102,11 +102,34 @@ pub(crate) async fn when_stopped(stop: Option<StopSignal>) {
     }
 }
 
+/// Runs `call` for at most `limit`; past it, the server did not answer `what`.
+pub(crate) async fn answered<T>(
+    what: &'static str,
+    limit: Duration,
+    call: impl Future<Output = Result<T, StationError>>,
+) -> Result<T, StationError> {
+    tokio::time::timeout(limit, call)
+        .await
+        .map_err(|_| StationError::NoAnswer { what, after: limit })?
+}
+
+/// How long a call may wait: [`CALL_TIMEOUT`], or less if the run's `duration`
+/// (counted from `started`) ends sooner.
+pub(crate) fn call_limit(started: Instant, duration: Option<Duration>) -> Duration {
+    duration.map_or(CALL_TIMEOUT, |d| {
+        d.saturating_sub(started.elapsed())
+            .min(CALL_TIMEOUT)
+            .max(Duration::from_millis(1))
+    })
+}
+
 /// Joins the session, drives the granted instruments and returns what was seen; see
-/// the [module documentation](self).
+/// the [module documentation](self). The configured duration bounds the whole run,
+/// connecting and joining included.
 pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, StationError> {
     config.check_rates()?;
-    let connection = connect(&config.connect).await?;
+    let started = Instant::now();
+    let connection = connect(&config.connect.within(config.duration)).await?;
     let open = JoinRequest {
         session_id: config.session_id.clone(),
         role: config.role as i32,
@@ -114,7 +137,12 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
         surface_frame_rate_hz: config.surface_frame_rate_hz,
         client_name: config.client_name.clone(),
     };
-    let mut link = Link::join(&connection, open).await?;
+    let mut link = answered(
+        "the join",
+        call_limit(started, config.duration),
+        Link::join(&connection, open),
+    )
+    .await?;
     let t0 = Instant::now();
     let joined = link.joined.clone();
     let scene = joined.scene.clone().unwrap_or_default();
@@ -138,7 +166,7 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut progress_tick = tokio::time::interval(PROGRESS_PERIOD);
     progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let deadline = after(config.duration);
+    let deadline = after(config.duration.map(|d| d.saturating_sub(started.elapsed())));
     tokio::pin!(deadline);
     let stop = when_stopped(config.stop.take());
     tokio::pin!(stop);

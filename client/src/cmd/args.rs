@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use clap::Args;
 
-use crate::connect::ConnectConfig;
+use crate::connect::{ConnectConfig, DEFAULT_CONNECT_TIMEOUT};
 use crate::haptics::force_loop::RATE_RANGE_HZ;
 
 /// How to reach the server.
@@ -22,6 +22,10 @@ pub struct ServerArgs {
     /// CA certificate (PEM) to trust for an https server.
     #[arg(long, value_name = "FILE")]
     pub ca: Option<PathBuf>,
+    /// How long to wait for the server's first answer when connecting, s
+    /// [default: 5].
+    #[arg(long, value_name = "T", value_parser = seconds)]
+    pub connect_timeout: Option<Duration>,
 }
 
 impl ServerArgs {
@@ -30,6 +34,7 @@ impl ServerArgs {
         ConnectConfig {
             token: self.token.clone(),
             ca_file: self.ca.clone(),
+            connect_timeout: self.connect_timeout.unwrap_or(DEFAULT_CONNECT_TIMEOUT),
             ..ConnectConfig::new(self.server.clone())
         }
     }
@@ -47,6 +52,10 @@ pub struct RemoteArgs {
     /// CA certificate (PEM) to trust for an https server.
     #[arg(long, value_name = "FILE", requires = "server")]
     pub ca: Option<PathBuf>,
+    /// How long to wait for the server's first answer when connecting, s
+    /// [default: 5].
+    #[arg(long, value_name = "T", value_parser = seconds, requires = "server")]
+    pub connect_timeout: Option<Duration>,
 }
 
 impl RemoteArgs {
@@ -55,6 +64,7 @@ impl RemoteArgs {
         self.server.as_ref().map(|url| ConnectConfig {
             token: self.token.clone(),
             ca_file: self.ca.clone(),
+            connect_timeout: self.connect_timeout.unwrap_or(DEFAULT_CONNECT_TIMEOUT),
             ..ConnectConfig::new(url.clone())
         })
     }

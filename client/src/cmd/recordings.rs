@@ -9,7 +9,7 @@ use laparo_server::recording::{FileState, list, recover};
 use super::BoxError;
 use super::args::RemoteArgs;
 use super::out::say;
-use crate::connect::{ConnectConfig, connect};
+use crate::connect::{ConnectConfig, connect, describe_status, unary};
 use crate::proto::v1::ListRecordingsRequest;
 
 /// `laparo recordings …`.
@@ -45,16 +45,10 @@ pub enum RecordingsCommand {
 /// Runs `list` or `recover`.
 pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
     match command {
-        RecordingsCommand::List { dir, remote } => {
-            say!(
-                "| file | session | scene | start (unix s) | duration (s) | size (bytes) | state |"
-            );
-            say!("|---|---|---|---|---|---|---|");
-            match remote.connect_config() {
-                Some(server) => list_server(&server).await,
-                None => list_dir(&dir),
-            }
-        }
+        RecordingsCommand::List { dir, remote } => match remote.connect_config() {
+            Some(server) => list_server(&server).await,
+            None => list_dir(&dir),
+        },
         RecordingsCommand::Recover { file, out } => {
             let out = out.unwrap_or_else(|| file.clone());
             let r = recover(&file, &out)?;
@@ -77,14 +71,29 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
     }
 }
 
-/// The rows of a server's recordings (`ListRecordings`).
+/// The table's header, printed once there is something to list.
+fn header() {
+    say!("| file | session | scene | start (unix s) | duration (s) | size (bytes) | state |");
+    say!("|---|---|---|---|---|---|---|");
+}
+
+/// The rows of a server's recordings (`ListRecordings`), the header once it
+/// answered.
 async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
     let connection = connect(server).await?;
     let listed = connection
         .recordings()
-        .list_recordings(ListRecordingsRequest {})
-        .await?
+        .list_recordings(unary(ListRecordingsRequest {}))
+        .await
+        .map_err(|status| {
+            format!(
+                "listing the recordings of {}: {}",
+                server.url,
+                describe_status(&status)
+            )
+        })?
         .into_inner();
+    header();
     for r in listed.recordings {
         let start = r
             .start
@@ -109,6 +118,7 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
 /// The rows of the recordings in `dir`, an unreadable one with why.
 fn list_dir(dir: &Path) -> Result<(), BoxError> {
     let listed = list(dir, |_| false).map_err(|e| format!("{}: {e}", dir.display()))?;
+    header();
     for l in listed {
         match &l.entry {
             Ok(e) => row(

@@ -153,6 +153,48 @@ fn replay_and_list_read_files_here_or_ask_a_server() {
 }
 
 #[test]
+fn the_connect_timeout_is_five_seconds_unless_given() {
+    let Command::Observe(a) = parse(&["observe", "--server", "http://h:1", "--session", "s"])
+        .unwrap()
+        .command
+    else {
+        panic!("not observe")
+    };
+    assert_eq!(
+        a.server.connect_config().connect_timeout,
+        Duration::from_secs(5)
+    );
+    let Command::Recordings(RecordingsCommand::List { remote, .. }) = parse(&[
+        "recordings",
+        "list",
+        "--server",
+        "http://h:1",
+        "--connect-timeout",
+        "0.5",
+    ])
+    .unwrap()
+    .command
+    else {
+        panic!("not recordings list")
+    };
+    let c = remote.connect_config().unwrap();
+    assert_eq!(c.connect_timeout, Duration::from_millis(500));
+    let e = parse(&["recordings", "list", "--connect-timeout", "1"]).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
+    let e = parse(&[
+        "observe",
+        "--server",
+        "http://h:1",
+        "--session",
+        "s",
+        "--connect-timeout",
+        "0",
+    ])
+    .unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::ValueValidation);
+}
+
+#[test]
 fn bad_values_are_usage_errors() {
     let base = ["station", "--server", "http://h:1", "--session", "s"];
     for bad in [

@@ -89,6 +89,13 @@ pub enum StationError {
     /// The server ended the call with a gRPC status.
     #[error("the server ended the stream with {code:?}: {message}")]
     Status { code: tonic::Code, message: String },
+    /// The connection broke under the call (the server died, closed it, or stopped
+    /// answering); says which, in words.
+    #[error("lost the connection to the server: {0}")]
+    Lost(String),
+    /// The server did not answer a call in time.
+    #[error("the server did not answer {what} within {} s", after.as_secs_f64())]
+    NoAnswer { what: &'static str, after: Duration },
     /// The server broke the protocol.
     #[error("protocol error: {0}")]
     Protocol(String),
@@ -105,7 +112,12 @@ pub enum StationError {
 }
 
 impl From<tonic::Status> for StationError {
+    /// A status the server sent as [`StationError::Status`]; one made on this side
+    /// because the transport failed as [`StationError::Lost`].
     fn from(status: tonic::Status) -> Self {
+        if let Some(words) = crate::connect::failure::lost(&status) {
+            return StationError::Lost(words);
+        }
         StationError::Status {
             code: status.code(),
             message: status.message().to_owned(),

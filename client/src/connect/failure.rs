@@ -1,0 +1,140 @@
+//! What went wrong with a connection, in words.
+//!
+//! tonic reports a transport failure as a short top-level error ("transport error",
+//! "h2 protocol error", "operation was canceled") whose causes hold what happened:
+//! an [`io::Error`] of a kind (refused, reset, end of file), a keep-alive that timed
+//! out, or a peer that is not HTTP/2 at all. These functions walk the chain of
+//! causes ([`std::error::Error::source`], and the payload of each `io::Error`, which
+//! `source` skips) and say what the user can act on.
+
+use std::error::Error;
+
+use std::io;
+
+use tonic::Status;
+
+/// The causes of `error`, itself first; an `io::Error`'s payload is visited too.
+pub fn causes<'a>(error: &'a (dyn Error + 'static)) -> Vec<&'a (dyn Error + 'static)> {
+    let mut out = Vec::new();
+    let mut next = Some(error);
+    while let Some(e) = next {
+        out.push(e);
+        next = match e.downcast_ref::<io::Error>().and_then(|io| io.get_ref()) {
+            Some(inner) => Some(inner as &(dyn Error + 'static)),
+            None => e.source(),
+        };
+        if out.len() > 32 {
+            break;
+        }
+    }
+    out
+}
+
+/// An error and its causes, joined with `: `, each said once.
+pub fn error_chain(error: &(dyn Error + 'static)) -> String {
+    let mut out = String::new();
+    for e in causes(error) {
+        let s = e.to_string();
+        if !out.contains(&s) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&s);
+        }
+    }
+    out
+}
+
+/// The first `io::Error` kind among the causes of `error`, if any.
+pub fn io_kind(error: &(dyn Error + 'static)) -> Option<io::ErrorKind> {
+    causes(error)
+        .into_iter()
+        .find_map(|e| e.downcast_ref::<io::Error>().map(io::Error::kind))
+}
+
+/// What a peer that does not speak what was expected answered, from the first bytes
+/// it sent; `None` when they look right (or nothing came).
+///
+/// Over plain HTTP/2 a server's first frame is its SETTINGS (frame type 4, the
+/// fourth byte of the 9-byte frame header, RFC 9113 §3.4). An HTTP/1 server answers
+/// the HTTP/2 preface with a status line; a TLS server with a record whose first
+/// byte is 0x15 (alert) or 0x16 (handshake) and second 0x03 (TLS 1.x). Under TLS
+/// (`tls`) only the raw status line of a plain HTTP server can be recognised.
+pub fn peer_answer(first: &[u8], tls: bool) -> Option<String> {
+    if first.starts_with(b"HTTP/") {
+        let line = first
+            .split(|&b| b == b'\r' || b == b'\n')
+            .next()
+            .unwrap_or(first);
+        return Some(format!("{} …", printable(line)));
+    }
+    if tls || first.is_empty() {
+        return None;
+    }
+    if first.len() >= 2 && (first[0] == 0x15 || first[0] == 0x16) && first[1] == 0x03 {
+        return Some("with TLS: use an https URL".into());
+    }
+    if first.len() >= 4 && first[3] != 0x04 {
+        return Some(format!("bytes that are not HTTP/2: {}", printable(first)));
+    }
+    None
+}
+
+/// `bytes` as text, anything but printable ASCII escaped.
+fn printable(bytes: &[u8]) -> String {
+    bytes.escape_ascii().to_string()
+}
+
+/// Words for a gRPC status made on this side because the transport failed (the
+/// server died, closed the connection, stopped answering); `None` for a status the
+/// server sent, which says what it means itself.
+pub fn lost(status: &Status) -> Option<String> {
+    let source = status.source()?;
+    let text = error_chain(source).to_lowercase();
+    let kind = io_kind(source);
+    let timed_out = causes(source)
+        .iter()
+        .any(|e| e.downcast_ref::<tonic::TimeoutExpired>().is_some());
+    Some(if timed_out {
+        "no answer from the server within the call's time limit".into()
+    } else if text.contains("keep-alive timed out") || text.contains("keep alive timed out") {
+        "the server stopped answering (no reply to a keep-alive ping)".into()
+    } else if kind == Some(io::ErrorKind::ConnectionRefused) || text.contains("connection refused")
+    {
+        "the server no longer accepts connections (connection refused): did it stop?".into()
+    } else if matches!(
+        kind,
+        Some(
+            io::ErrorKind::ConnectionReset
+                | io::ErrorKind::ConnectionAborted
+                | io::ErrorKind::BrokenPipe
+                | io::ErrorKind::UnexpectedEof
+        )
+    ) || [
+        "reset",
+        "broken pipe",
+        "eof",
+        "end of file",
+        "closed",
+        "error reading a body",
+    ]
+    .iter()
+    .any(|w| text.contains(w))
+    {
+        "the server closed the connection: did it stop?".into()
+    } else {
+        format!("the connection failed: {}", error_chain(source))
+    })
+}
+
+/// A status as words: [`lost`] for a transport failure, the server's code and
+/// message otherwise.
+pub fn describe_status(status: &Status) -> String {
+    lost(status).unwrap_or_else(|| {
+        format!(
+            "the server answered {:?}: {}",
+            status.code(),
+            status.message()
+        )
+    })
+}

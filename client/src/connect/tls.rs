@@ -1,0 +1,42 @@
+//! The CA certificate an `https` URL is checked against.
+//!
+//! tonic accepts any bytes as a PEM certificate and silently skips what does not
+//! parse, so a wrong file only shows in the handshake as "transport error". The
+//! file is read and parsed here first, and a file without a certificate is refused
+//! with its name.
+
+use std::path::Path;
+
+use rustls_pki_types::CertificateDer;
+use rustls_pki_types::pem::PemObject;
+use tonic::transport::{Certificate, ClientTlsConfig};
+
+use super::ConnectError;
+
+/// A TLS configuration trusting the CA certificates in the PEM file at `path`.
+pub fn tls_config(url: &str, path: &Path) -> Result<ClientTlsConfig, ConnectError> {
+    let pem = std::fs::read(path).map_err(|source| ConnectError::ReadCa {
+        url: url.to_owned(),
+        path: path.to_owned(),
+        source,
+    })?;
+    check_pem(&pem).map_err(|reason| ConnectError::BadCa {
+        path: path.to_owned(),
+        reason,
+    })?;
+    Ok(ClientTlsConfig::new().ca_certificate(Certificate::from_pem(pem)))
+}
+
+/// Checks that `pem` holds at least one certificate and every certificate block
+/// decodes; says what is wrong otherwise.
+pub fn check_pem(pem: &[u8]) -> Result<(), String> {
+    let mut certificates = 0;
+    for item in CertificateDer::pem_slice_iter(pem) {
+        item.map_err(|e| format!("a certificate block does not decode ({e})"))?;
+        certificates += 1;
+    }
+    if certificates == 0 {
+        return Err("no `-----BEGIN CERTIFICATE-----` block".into());
+    }
+    Ok(())
+}
