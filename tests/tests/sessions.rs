@@ -294,10 +294,12 @@ async fn a_station_drops_and_rejoins() {
     .await;
     assert!(left.is_some(), "no StationLeft event");
     assert_eq!(holder(&ch, &session, "left").await, None);
-    // The instrument stays where it was: still holding tissue.
+    // The instrument is withdrawn: it lets the tissue go.
     assert!(
         wait_for(&mut b.rx, WAIT, |m| state_of(m, "left")
-            .is_some_and(|s| s.held_vertex_count > 0))
+            .is_some_and(
+                |s| s.held_vertex_count == 0 && s.station_id.is_none()
+            ))
         .await
         .is_some()
     );
