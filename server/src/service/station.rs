@@ -24,6 +24,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status, Streaming};
 
 use super::auth::{Role, caller};
+use super::decode_status::contract_status;
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
 use crate::session::{PoseIn, RateLimit, Rejection, Session, check_pose};
@@ -75,7 +76,8 @@ impl v1::station_server::Station for StationService {
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
-            .map_err(|_| Status::deadline_exceeded("no opening message within 10 s"))??
+            .map_err(|_| Status::deadline_exceeded("no opening message within 10 s"))?
+            .map_err(contract_status)?
             .ok_or_else(|| {
                 Status::invalid_argument("the stream ended before its opening message")
             })?;
@@ -213,9 +215,10 @@ async fn receive(
             Ok(Some(m)) => m,
             Ok(None) => return,
             Err(status) => {
-                // A transport error or a message over the size limit: tell the
-                // station why, if it can still hear.
-                let _ = tx.try_send(Err(status));
+                // A transport error, a message that does not decode or one over the
+                // size limit: tell the station why, if it can still hear, with the
+                // contract's code.
+                let _ = tx.try_send(Err(contract_status(status)));
                 return;
             }
         };
