@@ -5,6 +5,8 @@
 //! poses (the default press of [`crate::gestures`]) from a tokio task at the pose
 //! rate; no force loop runs. The other stations join with an empty instrument list:
 //! they receive surface frames, instrument states and events, and send no pose.
+//! Such a station only watches, which needs an instructor token (as `Observe`
+//! does): with a trainee token, run at most as many stations as free instruments.
 //!
 //! Measured: the pose-to-state latency over every posing station (as in
 //! [`crate::station`]), the frames and states each station received, and, from

@@ -1,7 +1,8 @@
 //! `run_station` against a minimal fake `Station` service on loopback: the token
 //! arrives, the open message is first, poses are numbered and echoed back as
-//! `pose_sequence`, invalid local models are counted, `Leave` ends the stream, and a
-//! status ending the stream comes back with its code. No timing assertions.
+//! `pose_sequence`, invalid local models are counted, `Leave` ends the stream, a
+//! status ending the stream comes back with its code, and a join that does not
+//! grant every instrument claimed is a protocol error. No timing assertions.
 
 use std::time::Duration;
 
@@ -86,13 +87,20 @@ impl Station for Fake {
         if open.session_id == "missing" {
             return Err(Status::not_found("no session \"missing\""));
         }
-        let (tx, rx) = mpsc::channel(1024);
-        let granted: Vec<String> = open
+        let known: Vec<String> = open
             .instruments
             .iter()
             .filter(|n| *n == "left")
             .cloned()
             .collect();
+        // As the contract says, a join is granted whole or refused; the session
+        // "partial" breaks it and grants what it knows.
+        let granted = if open.session_id == "partial" || known == open.instruments {
+            known
+        } else {
+            return Err(Status::not_found("no instrument \"right\""));
+        };
+        let (tx, rx) = mpsc::channel(1024);
         tx.send(Ok(ServerMessage {
             kind: Some(server_message::Kind::Joined(Joined {
                 station_id: 1,
@@ -152,7 +160,7 @@ async fn serve() -> String {
 }
 
 fn config(url: &str, session: &str, seconds: f64) -> StationConfig {
-    let mut c = StationConfig::new(url, session, vec!["left".into(), "right".into()]);
+    let mut c = StationConfig::new(url, session, vec!["left".into()]);
     c.connect.token = Some("tok".into());
     c.duration = Some(Duration::from_secs_f64(seconds));
     c
@@ -205,6 +213,34 @@ async fn statuses_come_back_with_their_code() {
                 ..
             }
         ),
+        "{e}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_join_is_granted_whole_or_the_station_does_not_run() {
+    let url = serve().await;
+    let both = |session: &str| {
+        let mut c = config(&url, session, 5.0);
+        c.instruments = vec!["left".into(), "right".into()];
+        c
+    };
+    // Refused whole: the server's status.
+    let e = run_station(both("s1")).await.unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            StationError::Status {
+                code: tonic::Code::NotFound,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A server that grants part of the claim breaks the protocol.
+    let e = run_station(both("partial")).await.unwrap_err();
+    assert!(
+        matches!(&e, StationError::Protocol(m) if m.contains("granted")),
         "{e}"
     );
 }

@@ -23,8 +23,12 @@ pub(crate) struct Link {
 
 impl Link {
     /// Opens a `Join` stream with `open` and waits for `Joined`; any other first
-    /// message, or none, is a protocol error.
+    /// message, or none, is a protocol error, and so is a `Joined` that does not
+    /// grant every instrument claimed ([`check_granted`]). A refused join (an
+    /// instrument unknown, taken or not the caller's, or no instrument on a trainee
+    /// token) is the server's status, as [`StationError::Status`].
     pub async fn join(connection: &Connection, open: JoinRequest) -> Result<Link, StationError> {
+        let claimed = open.instruments.clone();
         let (outgoing, rx) = mpsc::channel(OUTGOING_QUEUE);
         outgoing
             .try_send(StationMessage {
@@ -39,11 +43,14 @@ impl Link {
         match incoming.message().await? {
             Some(ServerMessage {
                 kind: Some(server_message::Kind::Joined(joined)),
-            }) => Ok(Link {
-                outgoing,
-                incoming,
-                joined,
-            }),
+            }) => {
+                check_granted(&claimed, &joined)?;
+                Ok(Link {
+                    outgoing,
+                    incoming,
+                    joined,
+                })
+            }
             Some(other) => Err(StationError::Protocol(format!(
                 "expected Joined as the first server message, got {:?}",
                 other.kind.as_ref().map(kind_name)
@@ -78,6 +85,21 @@ impl Link {
             while let Ok(Some(_)) = incoming.message().await {}
         })
         .await;
+    }
+}
+
+/// Checks that `joined` grants exactly the instruments `claimed`, in their order:
+/// the contract grants a join whole or refuses it with a status, so anything else
+/// is a server breaking the protocol (a station would drive devices for
+/// instruments it does not hold).
+pub(crate) fn check_granted(claimed: &[String], joined: &Joined) -> Result<(), StationError> {
+    if joined.instruments == claimed {
+        Ok(())
+    } else {
+        Err(StationError::Protocol(format!(
+            "claimed instruments {claimed:?} but Joined granted {:?}",
+            joined.instruments
+        )))
     }
 }
 

@@ -70,7 +70,8 @@ pub struct StationSummary {
     pub station_id: u64,
     /// Session joined.
     pub session_id: String,
-    /// Instruments granted (the others were refused with a station error).
+    /// Instruments granted: all those claimed (a join is granted whole, or refused
+    /// with a status and the station does not run).
     pub instruments: Vec<String>,
     /// How the run ended.
     pub end: StationEnd,

@@ -1,6 +1,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::intake::error_code_name;
+use super::link::check_granted;
 use super::*;
 use crate::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use crate::proto::force::LocalModel;
@@ -80,4 +81,27 @@ fn a_status_keeps_its_code_and_message() {
         &e,
         StationError::Status { code: tonic::Code::NotFound, message } if message == "no session \"x\""
     ));
+}
+
+#[test]
+fn a_join_must_grant_every_instrument_claimed() {
+    let claimed = vec!["left".to_string(), "right".to_string()];
+    let joined = |granted: &[&str]| v1::Joined {
+        instruments: granted.iter().map(|s| s.to_string()).collect(),
+        ..Default::default()
+    };
+    assert!(check_granted(&claimed, &joined(&["left", "right"])).is_ok());
+    assert!(check_granted(&[], &joined(&[])).is_ok());
+    for partial in [
+        &["left"][..],
+        &[],
+        &["right", "left"],
+        &["left", "right", "x"],
+    ] {
+        let e = check_granted(&claimed, &joined(partial)).unwrap_err();
+        assert!(
+            matches!(&e, StationError::Protocol(m) if m.contains("granted")),
+            "{partial:?}: {e}"
+        );
+    }
 }

@@ -11,6 +11,7 @@
 //! [[tokens]]
 //! token = "s3cret-station-1"
 //! role = "trainee"             # join as a station, claim only its instruments
+//!                              # (a station with none only watches: instructors)
 //! instruments = ["left"]       # absent: any instrument
 //! ```
 //!

@@ -3,13 +3,15 @@
 //! and the standard health service, so that grpcurl, grpcui and clients in other
 //! languages work without our code.
 //!
-//! Every service runs the [`auth::Authenticate`] interceptor. The server refuses to
+//! Every service runs the [`auth::Authenticate`] interceptor, and answers a request
+//! it cannot read with the contract's codes ([`decode_status`]). The server refuses to
 //! listen on a non-loopback address unless it has both TLS and tokens, or is told
 //! `insecure`. On shutdown every session closes: open streams end with
 //! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
 
 pub mod auth;
 pub mod catalog;
+pub mod decode_status;
 pub mod observe;
 pub mod read_status;
 pub mod recordings;
@@ -35,11 +37,13 @@ use tonic::transport::{Identity, Server, ServerTlsConfig};
 
 pub use auth::{Caller, Role, TokenListError, Tokens, TokensError};
 pub use catalog::{CatalogError, SceneCatalog};
+use decode_status::ContractStatus;
 pub use registry::Registry;
 pub use station::PoseLimits;
 
 /// Largest message a client may send, bytes: poses and requests are well under a
-/// kilobyte; 64 KiB leaves room and refuses floods.
+/// kilobyte; 64 KiB leaves room and refuses floods. A larger message is answered
+/// with `RESOURCE_EXHAUSTED` naming this limit ([`decode_status`]).
 pub const MAX_MESSAGE_BYTES: usize = 64 * 1024;
 /// Largest message the server sends, bytes: a liver-300k surface frame is ~1 MB.
 pub const MAX_SEND_BYTES: usize = 64 * 1024 * 1024;
@@ -125,12 +129,12 @@ pub async fn serve(
 
     macro_rules! service {
         ($server:ty, $inner:expr) => {
-            InterceptedService::new(
+            ContractStatus(InterceptedService::new(
                 <$server>::new($inner)
                     .max_decoding_message_size(MAX_MESSAGE_BYTES)
                     .max_encoding_message_size(MAX_SEND_BYTES),
                 auth.clone(),
-            )
+            ))
         };
     }
     let scenes = service!(

@@ -1,16 +1,26 @@
 //! `Station.Join`: a trainee station's bidirectional stream.
 //!
 //! The first message must be `open` (a `JoinRequest`), within [`OPEN_TIMEOUT`]; the
-//! server checks the session, the role and every instrument claimed, answers
-//! `Joined` with the scene, then streams frames, instrument states and events, while
-//! the station streams device poses. A bad pose is dropped and answered with a
+//! server checks the role (`ROLE_UNSPECIFIED` is `INVALID_ARGUMENT`), the session and
+//! every instrument claimed, answers `Joined` with the scene, then streams frames,
+//! instrument states and events, while the station streams device poses.
+//!
+//! A join is granted whole or refused whole, before `Joined`, with a status: an
+//! unknown instrument is `NOT_FOUND`, one held by another station `ALREADY_EXISTS`,
+//! one the caller's token may not claim `PERMISSION_DENIED`, one claimed twice
+//! `INVALID_ARGUMENT`. A station with no instrument only watches, which is the
+//! right of an instructor token, as `Observe` is: a trainee token is
+//! `PERMISSION_DENIED`.
+//!
+//! A bad pose is dropped and answered with a
 //! `StationError` on this stream (and an `INPUT_REJECTED` event for the others); the
 //! session, the other stations and the recording go on. More than
 //! [`ABUSE_LIMIT`] rejected messages within a second close the stream:
 //! `RESOURCE_EXHAUSTED` when most were over the pose rate, `INVALID_ARGUMENT`
 //! otherwise. Leaving, dropping the connection or the server ending the stream all
-//! release the station's instruments, which stay where it left them until a station
-//! claims them again.
+//! release the station's instruments, which are withdrawn from the body (the
+//! tissue they held is let go) and have no holder until a station claims them
+//! again.
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -25,6 +35,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status, Streaming};
 
 use super::auth::{Role, caller};
+use super::decode_status::contract_status;
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
 use crate::session::{PoseIn, RateLimit, Rejection, Session, check_pose};
@@ -76,7 +87,8 @@ impl v1::station_server::Station for StationService {
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
-            .map_err(|_| Status::deadline_exceeded("no opening message within 10 s"))??
+            .map_err(|_| Status::deadline_exceeded("no opening message within 10 s"))?
+            .map_err(contract_status)?
             .ok_or_else(|| {
                 Status::invalid_argument("the stream ended before its opening message")
             })?;
@@ -85,14 +97,15 @@ impl v1::station_server::Station for StationService {
                 "the first message of Join must be `open` (a JoinRequest)",
             ));
         };
+        let role = join_role(open.role)?;
+        if role == v1::Role::Instructor {
+            caller.require_instructor("joining as an instructor station")?;
+        }
+        if open.instruments.is_empty() {
+            // A station with no instrument only watches: the rule of Observe.
+            caller.require_instructor("joining with no instrument (watching the session)")?;
+        }
         let session = self.registry.get(&open.session_id)?;
-        let role = match v1::Role::try_from(open.role).unwrap_or(v1::Role::Unspecified) {
-            v1::Role::Instructor => {
-                caller.require_instructor("joining as an instructor station")?;
-                v1::Role::Instructor
-            }
-            _ => v1::Role::Trainee,
-        };
         let mut claimed = Vec::with_capacity(open.instruments.len());
         for name in &open.instruments {
             let k = session.instrument_index(name).ok_or_else(|| {
@@ -185,6 +198,18 @@ impl v1::station_server::Station for StationService {
     }
 }
 
+/// The role a `JoinRequest` states: trainee or instructor. `ROLE_UNSPECIFIED` and
+/// numbers the contract does not define are `INVALID_ARGUMENT` naming the field (a
+/// station must say what it is; it is never taken for a trainee).
+fn join_role(role: i32) -> Result<v1::Role, Status> {
+    match v1::Role::try_from(role) {
+        Ok(r @ (v1::Role::Trainee | v1::Role::Instructor)) => Ok(r),
+        _ => Err(Status::invalid_argument(format!(
+            "JoinRequest.role must be ROLE_TRAINEE (1) or ROLE_INSTRUCTOR (2), got {role}"
+        ))),
+    }
+}
+
 /// Per claimed instrument: its index, rate limit and last accepted sequence.
 struct Claim {
     index: usize,
@@ -223,9 +248,10 @@ async fn receive(
             Ok(Some(m)) => m,
             Ok(None) => return,
             Err(status) => {
-                // A transport error or a message over the size limit: tell the
-                // station why, if it can still hear.
-                let _ = tx.try_send(Err(status));
+                // A transport error, a message that does not decode or one over the
+                // size limit: tell the station why, if it can still hear, with the
+                // contract's code.
+                let _ = tx.try_send(Err(contract_status(status)));
                 return;
             }
         };

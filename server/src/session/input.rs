@@ -18,6 +18,25 @@ pub struct PoseIn {
     pub station: u64,
 }
 
+/// What the mechanics thread finds in an instrument's pose slot at a tick.
+///
+/// The slot keeps its value until it is overwritten, so the mechanics applies the
+/// same newest value every tick: a held pose keeps the instrument where the station
+/// put it, and a withdrawal keeps it out of the body until a station sends a pose.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Slot {
+    /// No station has driven the instrument since the session started: it stays
+    /// where the scene put it (out of the body).
+    #[default]
+    Untouched,
+    /// The newest pose a station sent.
+    Pose(PoseIn),
+    /// The station holding the instrument left: the instrument is taken out of the
+    /// body (`Simulation::set_pose(k, None)`), so that the vertices it held are
+    /// let go and the tissue relaxes, and it has no holder.
+    Withdrawn,
+}
+
 /// A rejected pose: the error code the station is told and why.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rejection {

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant, SystemTime};
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use super::{PoseIn, Session, SessionStats};
+use super::{Session, SessionStats, Slot};
 use crate::engine::simulation::Simulation;
 use crate::frame::{Frame, Holder, TickOutputs};
 use crate::recording::{Item, Recorder, Report};
@@ -16,7 +16,7 @@ use crate::recording::{Item, Recorder, Report};
 /// What the thread owns.
 pub(super) struct Mechanics {
     pub sim: Simulation,
-    pub inputs: Vec<triple_buffer::Output<Option<PoseIn>>>,
+    pub inputs: Vec<triple_buffer::Output<Slot>>,
     pub frames: watch::Sender<Arc<Frame>>,
     pub events: broadcast::Sender<v1::Event>,
     pub stats: Arc<SessionStats>,
@@ -73,12 +73,19 @@ impl Mechanics {
             next += dt;
             let started = Instant::now();
             for (k, input) in self.inputs.iter_mut().enumerate() {
-                if let Some(p) = *input.read() {
-                    self.sim.set_pose(k, Some(p.pose));
-                    holders[k] = Holder {
-                        station: Some(p.station),
-                        pose_sequence: Some(p.sequence),
-                    };
+                match *input.read() {
+                    Slot::Untouched => {}
+                    Slot::Pose(p) => {
+                        self.sim.set_pose(k, Some(p.pose));
+                        holders[k] = Holder {
+                            station: Some(p.station),
+                            pose_sequence: Some(p.sequence),
+                        };
+                    }
+                    Slot::Withdrawn => {
+                        self.sim.set_pose(k, None);
+                        holders[k] = Holder::default();
+                    }
                 }
             }
             self.sim.tick();

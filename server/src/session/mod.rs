@@ -43,7 +43,7 @@ pub use closing::Closing;
 pub use error::SessionError;
 pub use halt::first_non_finite;
 pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
-pub use input::{PoseIn, RateLimit, Rejection, Workspace, check_pose};
+pub use input::{PoseIn, RateLimit, Rejection, Slot, Workspace, check_pose};
 
 /// How a session runs.
 #[derive(Clone, Debug)]
@@ -92,7 +92,7 @@ pub struct Session {
     pub idle_timeout: Option<Duration>,
     pub stats: Arc<SessionStats>,
     roster: Mutex<Roster>,
-    slots: Vec<Mutex<triple_buffer::Input<Option<PoseIn>>>>,
+    slots: Vec<Mutex<triple_buffer::Input<Slot>>>,
     frames: watch::Receiver<Arc<Frame>>,
     events: broadcast::Sender<v1::Event>,
     closing: Closing,
@@ -127,8 +127,9 @@ impl Session {
             max: hi + nalgebra::Vector3::repeat(reach),
         };
         let n = sim.instruments.len();
-        let (inputs, outputs): (Vec<_>, Vec<_>) =
-            (0..n).map(|_| triple_buffer::triple_buffer(&None)).unzip();
+        let (inputs, outputs): (Vec<_>, Vec<_>) = (0..n)
+            .map(|_| triple_buffer::triple_buffer(&Slot::Untouched))
+            .unzip();
         let (frame_tx, frames) = watch::channel(Arc::new(Frame::default()));
         let (events, _) = broadcast::channel(EVENT_BACKLOG);
         let stats = Arc::new(SessionStats::default());
@@ -233,22 +234,30 @@ impl Session {
         id
     }
 
-    /// Removes a station; its instruments stay where it left them until a station
-    /// claims them again.
+    /// Removes a station and withdraws the instruments it held: each is taken out
+    /// of the body at the next tick (its held vertices let go, its force zero) and
+    /// has no holder until a station claims it again. The withdrawal is written
+    /// under the roster lock, so it cannot overwrite the pose of a station that
+    /// claims the instrument right after.
     pub fn remove_station(&self, station: u64) {
         let mut roster = self.roster();
         roster.stations.remove(&station);
-        for h in &mut roster.holders {
+        for (k, h) in roster.holders.iter_mut().enumerate() {
             if *h == Some(station) {
                 *h = None;
+                self.write_slot(k, Slot::Withdrawn);
             }
         }
     }
 
     /// Hands a checked pose of instrument `k` to the mechanics thread.
     pub fn submit_pose(&self, k: usize, pose: PoseIn) {
+        self.write_slot(k, Slot::Pose(pose));
+    }
+
+    fn write_slot(&self, k: usize, value: Slot) {
         let mut slot = self.slots[k].lock().unwrap_or_else(|e| e.into_inner());
-        slot.write(Some(pose));
+        slot.write(value);
     }
 
     /// Hands a pose the station service accepted to the recorder, stamped now.
