@@ -91,7 +91,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             .map_err(|e| format!("--idle-timeout: {e}"))?,
         pose_limits: PoseLimits {
             rate_hz: args.max_pose_rate,
-            ..PoseLimits::default()
+            burst: laparo_server::session::input::stall_burst(args.max_pose_rate),
         },
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),

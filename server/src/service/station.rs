@@ -54,16 +54,18 @@ const REJECTION_EVENTS_PER_SECOND: u32 = 5;
 pub struct PoseLimits {
     /// Poses per second per instrument.
     pub rate_hz: f64,
-    /// Poses that may arrive at once (a network burst).
+    /// Poses that may arrive at once (a network burst): a stall window's worth.
     pub burst: f64,
 }
 
 impl Default for PoseLimits {
-    /// 2 kHz: twice a 1 kHz haptic device's rate; a burst of 100.
+    /// 2 kHz: twice a 1 kHz haptic device's rate; a burst of
+    /// [`STALL_WINDOW_S`](crate::session::input::STALL_WINDOW_S) at that rate, so
+    /// that poses queued by a network stall are not counted as abuse.
     fn default() -> Self {
         PoseLimits {
             rate_hz: 2000.0,
-            burst: 100.0,
+            burst: crate::session::input::stall_burst(2000.0),
         }
     }
 }
