@@ -195,12 +195,17 @@ async fn bad_input_gets_a_clear_answer_and_harms_nothing() {
     .await
     .unwrap();
     assert_eq!(ended, Code::ResourceExhausted);
-    // Poses faster than the limit: rate-limited, then the stream is closed.
-    for k in 0..3000u64 {
-        if a.tx.send(pose("left", away, z, 100 + k)).await.is_err() {
-            break;
+    // Poses far faster than the limit for longer than its stall window:
+    // rate-limited, then the stream is closed.
+    let tx = a.tx.clone();
+    let sender = tokio::spawn(async move {
+        for k in 0..1_000_000u64 {
+            match tokio::time::timeout(WAIT, tx.send(pose("left", away, z, 100 + k))).await {
+                Ok(Ok(())) => {}
+                _ => return,
+            }
         }
-    }
+    });
     let closed = tokio::time::timeout(WAIT, async {
         let mut limited = 0;
         loop {
@@ -216,6 +221,7 @@ async fn bad_input_gets_a_clear_answer_and_harms_nothing() {
     })
     .await
     .unwrap();
+    sender.abort();
     assert!(closed.0 > 0, "no pose was rate-limited");
     assert_eq!(closed.1, Code::ResourceExhausted);
     // Through all this, the session and the other station went on.

@@ -1,0 +1,121 @@
+//! The pose rate limit against a real server on loopback: a burst of queued poses
+//! after a network stall is admitted, sustained poses far above the limit close the
+//! stream with `RESOURCE_EXHAUSTED`.
+
+use std::time::Duration;
+
+use laparo_proto::v1;
+use laparo_proto::v1::server_message::Kind;
+use laparo_server::service::ServeConfig;
+use laparo_tests::pressing::{front, state_of};
+use laparo_tests::server::*;
+use tonic::Code;
+
+const WAIT: Duration = Duration::from_secs(20);
+
+/// The `poses_rejected` and `poses_accepted` counts of `session`.
+async fn counts(ch: tonic::transport::Channel, session: &str) -> (u64, u64) {
+    let info = v1::sessions_client::SessionsClient::new(ch)
+        .get_session(v1::GetSessionRequest {
+            session_id: session.into(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    (info.poses_rejected, info.poses_accepted)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_burst_after_a_stall_keeps_the_station_connected() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let (mut a, joined) = join(ch.clone(), None, &session, &["left"]).await.unwrap();
+    let f = front(&joined);
+    let away = [f[0], f[1], f[2] + 0.05];
+    let z = [0.0, 0.0, 1.0];
+    // 0.2 s at 1 kHz, then a 0.3 s stall whose 300 poses arrive at once, then 0.2 s
+    // more at 1 kHz: 700 poses, every one in order.
+    let mut sequence = 0u64;
+    let mut tick = tokio::time::interval(Duration::from_millis(1));
+    for _ in 0..200 {
+        tick.tick().await;
+        sequence += 1;
+        a.tx.send(pose("left", away, z, sequence)).await.unwrap();
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    for _ in 0..300 {
+        sequence += 1;
+        a.tx.send(pose("left", away, z, sequence)).await.unwrap();
+    }
+    for _ in 0..200 {
+        tick.tick().await;
+        sequence += 1;
+        a.tx.send(pose("left", away, z, sequence)).await.unwrap();
+    }
+    // The newest pose is applied, and no message on the way was an error.
+    let mut errors = Vec::new();
+    let applied = wait_for(&mut a.rx, WAIT, |m| {
+        if let Some(Kind::Error(e)) = &m.kind {
+            errors.push(e.clone());
+        }
+        state_of(m, "left").is_some_and(|s| s.pose_sequence == Some(sequence))
+    })
+    .await;
+    assert!(errors.is_empty(), "{errors:?}");
+    assert!(applied.is_some(), "the newest pose was never applied");
+    let (rejected, accepted) = counts(ch.clone(), &session).await;
+    assert_eq!((rejected, accepted), (0, sequence));
+    // Still connected: another pose is applied.
+    sequence += 1;
+    a.tx.send(pose("left", away, z, sequence)).await.unwrap();
+    let applied = wait_for(&mut a.rx, WAIT, |m| {
+        state_of(m, "left").is_some_and(|s| s.pose_sequence == Some(sequence))
+    })
+    .await;
+    assert!(applied.is_some(), "the station was disconnected");
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sustained_poses_far_above_the_limit_close_the_stream() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let (mut a, joined) = join(ch.clone(), None, &session, &["left"]).await.unwrap();
+    let f = front(&joined);
+    let away = [f[0], f[1], f[2] + 0.05];
+    let z = [0.0, 0.0, 1.0];
+    // As fast as the loopback carries them, until the server closes the stream (at
+    // most 10^6 poses, each send bounded).
+    let tx = a.tx.clone();
+    let sender = tokio::spawn(async move {
+        for k in 1..=1_000_000u64 {
+            match tokio::time::timeout(WAIT, tx.send(pose("left", away, z, k))).await {
+                Ok(Ok(())) => {}
+                _ => return,
+            }
+        }
+    });
+    let closed = tokio::time::timeout(Duration::from_secs(60), async {
+        let mut limited = 0u64;
+        loop {
+            match a.rx.message().await {
+                Ok(Some(v1::ServerMessage {
+                    kind: Some(Kind::Error(e)),
+                })) if e.code == v1::ErrorCode::RateLimited as i32 => limited += 1,
+                Ok(Some(_)) => {}
+                Ok(None) => return (limited, Code::Ok),
+                Err(status) => return (limited, status.code()),
+            }
+        }
+    })
+    .await
+    .expect("the stream was never closed");
+    sender.abort();
+    assert!(closed.0 > 0, "no pose was rate-limited");
+    assert_eq!(closed.1, Code::ResourceExhausted);
+    let (rejected, _) = counts(ch.clone(), &session).await;
+    assert!(rejected > 100, "{rejected}");
+    server.shutdown().await.unwrap();
+}
