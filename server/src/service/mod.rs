@@ -12,6 +12,8 @@
 pub mod auth;
 pub mod catalog;
 pub mod decode_status;
+pub mod join_rate;
+pub mod limits;
 pub mod observe;
 pub mod read_status;
 pub mod recordings;

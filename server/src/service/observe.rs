@@ -36,6 +36,7 @@ impl v1::observe_server::Observe for ObserveService {
     ) -> Result<Response<Self::ObserveStream>, Status> {
         caller(&request)?.require_instructor("observing a session")?;
         let r = request.get_ref();
+        super::limits::check_name("session_id", &r.session_id)?;
         let session = self.registry.get(&r.session_id)?;
         let rate = frame_rate(r.frame_rate_hz, session.scene.mechanics.rate_hz)?;
         let (tx, rx) = mpsc::channel(OUTBOUND);

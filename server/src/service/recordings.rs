@@ -293,6 +293,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
     ) -> Result<Response<Self::ReplayStream>, Status> {
         let caller = caller(&request)?;
         let r = request.into_inner();
+        super::limits::check_name("file", &r.file)?;
         let name = file_name(&r.file)?.to_string();
         let speed = speed(r.speed)?;
         let offset = start_offset(r.start_offset_s)?;

@@ -27,6 +27,8 @@ pub struct Registry {
     recorders: Mutex<Vec<Weak<Recorder>>>,
     /// Whether the server is shutting down, and why.
     shutdown: Closing,
+    /// How often each caller may join a station.
+    pub joins: super::join_rate::JoinRate,
 }
 
 impl Registry {
@@ -43,6 +45,7 @@ impl Registry {
             recordings,
             recorders: Mutex::new(Vec::new()),
             shutdown: Closing::new(),
+            joins: Default::default(),
         }
     }
 

@@ -69,6 +69,7 @@ impl Scenes for ScenesService {
         request: Request<v1::GetSceneRequest>,
     ) -> Result<Response<v1::SceneDescription>, Status> {
         caller(&request)?;
+        super::limits::check_name("name", &request.get_ref().name)?;
         Ok(Response::new(self.describe(&request.get_ref().name)?))
     }
 }

@@ -8,6 +8,7 @@ use laparo_proto::v1::sessions_server::Sessions;
 use tonic::{Request, Response, Status};
 
 use super::auth::caller;
+use super::limits;
 use super::registry::Registry;
 use crate::session::idle_timeout;
 
@@ -23,6 +24,7 @@ impl Sessions for SessionsService {
     ) -> Result<Response<v1::SessionInfo>, Status> {
         caller(&request)?.require_instructor("creating a session")?;
         let r = request.get_ref();
+        limits::check_name("scene", &r.scene)?;
         let idle = match r.idle_timeout_s {
             None => self.registry.idle_timeout,
             Some(t) => idle_timeout(t)
@@ -42,6 +44,7 @@ impl Sessions for SessionsService {
         request: Request<v1::GetSessionRequest>,
     ) -> Result<Response<v1::SessionInfo>, Status> {
         caller(&request)?;
+        limits::check_name("session_id", &request.get_ref().session_id)?;
         let session = self.registry.get(&request.get_ref().session_id)?;
         Ok(Response::new(session.info()))
     }
@@ -61,6 +64,8 @@ impl Sessions for SessionsService {
     ) -> Result<Response<v1::CloseSessionResponse>, Status> {
         caller(&request)?.require_instructor("closing a session")?;
         let r = request.get_ref();
+        limits::check_name("session_id", &r.session_id)?;
+        limits::check_reason("reason", &r.reason)?;
         let reason = if r.reason.is_empty() {
             "closed by an instructor".into()
         } else {

@@ -86,6 +86,9 @@ impl v1::station_server::Station for StationService {
         request: Request<Streaming<v1::StationMessage>>,
     ) -> Result<Response<Self::JoinStream>, Status> {
         let caller = caller(&request)?;
+        let peer = request.remote_addr().map(|a| a.ip().to_string());
+        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
+        self.registry.joins.admit(&key, std::time::Instant::now())?;
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
@@ -99,6 +102,9 @@ impl v1::station_server::Station for StationService {
                 "the first message of Join must be `open` (a JoinRequest)",
             ));
         };
+        super::limits::check_name("session_id", &open.session_id)?;
+        super::limits::check_name("client_name", &open.client_name)?;
+        super::limits::check_names("instruments", &open.instruments)?;
         let role = join_role(open.role)?;
         if role == v1::Role::Instructor {
             caller.require_instructor("joining as an instructor station")?;

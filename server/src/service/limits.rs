@@ -1,0 +1,80 @@
+//! Length limits on every string a client sends, checked at the edge before the
+//! string reaches a session, an event, a log line or a recording.
+//!
+//! Without them one client can make every event it causes (a join, a leave, a
+//! close) as large as a gRPC body allows, and each event is copied to every
+//! observer and into the recording. The limits are in bytes of UTF-8 and stated in
+//! the `.proto` comments of each field.
+
+use tonic::Status;
+
+/// Names and ids: `client_name`, `session_id`, instrument and scene names,
+/// recording file names. 256 bytes hold any name a person or a generator gives.
+pub const MAX_NAME_BYTES: usize = 256;
+
+/// Free text a person writes: the `reason` of `CloseSession` and of a `Leave`.
+pub const MAX_REASON_BYTES: usize = 1024;
+
+/// Instruments a single join may name: more than a scene ever has.
+pub const MAX_INSTRUMENTS: usize = 64;
+
+/// `INVALID_ARGUMENT` naming `field` and `limit` when `value` is longer than `limit` bytes.
+pub fn check_len(field: &str, value: &str, limit: usize) -> Result<(), Status> {
+    if value.len() > limit {
+        return Err(Status::invalid_argument(format!(
+            "{field} is {} bytes, over the limit of {limit} bytes",
+            value.len()
+        )));
+    }
+    Ok(())
+}
+
+/// [`check_len`] with [`MAX_NAME_BYTES`].
+pub fn check_name(field: &str, value: &str) -> Result<(), Status> {
+    check_len(field, value, MAX_NAME_BYTES)
+}
+
+/// [`check_len`] with [`MAX_REASON_BYTES`].
+pub fn check_reason(field: &str, value: &str) -> Result<(), Status> {
+    check_len(field, value, MAX_REASON_BYTES)
+}
+
+/// Every name in `values` within [`MAX_NAME_BYTES`], and at most [`MAX_INSTRUMENTS`] of them.
+pub fn check_names(field: &str, values: &[String]) -> Result<(), Status> {
+    if values.len() > MAX_INSTRUMENTS {
+        return Err(Status::invalid_argument(format!(
+            "{field} has {} entries, over the limit of {MAX_INSTRUMENTS}",
+            values.len()
+        )));
+    }
+    values.iter().try_for_each(|v| check_name(field, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_at_the_limit_passes_and_one_byte_more_is_refused_naming_the_field() {
+        assert!(check_name("client_name", &"a".repeat(MAX_NAME_BYTES)).is_ok());
+        let e = check_name("client_name", &"a".repeat(MAX_NAME_BYTES + 1)).unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("client_name"));
+        assert!(e.message().contains("256"));
+    }
+
+    #[test]
+    fn the_limit_counts_bytes_not_characters() {
+        // 'é' is two bytes of UTF-8.
+        assert!(check_name("scene", &"é".repeat(MAX_NAME_BYTES / 2)).is_ok());
+        assert!(check_name("scene", &"é".repeat(MAX_NAME_BYTES / 2 + 1)).is_err());
+    }
+
+    #[test]
+    fn too_many_instruments_are_refused() {
+        let many = vec!["grasper".to_string(); MAX_INSTRUMENTS + 1];
+        let e = check_names("instruments", &many).unwrap_err();
+        assert!(e.message().contains("instruments"));
+        assert!(check_names("instruments", &many[..MAX_INSTRUMENTS]).is_ok());
+    }
+}
