@@ -412,7 +412,12 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
     let (server, ch, dir) = recording_server("gone").await;
-    // The directory goes away after the server started: the file cannot be made.
+    // An answered call means the server runs, so it has made its recordings
+    // directory (serving starts after that); then the directory goes away and the
+    // file cannot be made.
+    let _ = recordings(&ch)
+        .list_recordings(v1::ListRecordingsRequest {})
+        .await;
     std::fs::remove_dir_all(&dir).unwrap();
     let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
     let info = sessions
