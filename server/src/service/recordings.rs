@@ -260,7 +260,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let lister = self.lister.clone();
         let listed = blocking(move || {
             lister
-                .list(&dir, |p| registry.is_recording(p))
+                .list_at_most(&dir, list::MAX_LISTED_FILES, |p| registry.is_recording(p))
                 .map_err(|e| {
                     tracing::warn!(dir = %dir.display(), "cannot read the recordings directory: {e}");
                     // Not the directory's path: clients know no server paths.
@@ -270,6 +270,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 })
         })
         .await?;
+        let (listed, left_out) = listed;
         let mut recordings = Vec::new();
         for l in listed {
             if l.file.chars().any(needs_escape) {
@@ -284,7 +285,10 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 }
             }
         }
-        Ok(Response::new(v1::ListRecordingsResponse { recordings }))
+        Ok(Response::new(v1::ListRecordingsResponse {
+            recordings,
+            left_out: u32::try_from(left_out).unwrap_or(u32::MAX),
+        }))
     }
 
     async fn replay(
