@@ -463,3 +463,73 @@ async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
     );
     server.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_whose_mesh_is_gone_cannot_be_resimulated_and_says_so_without_server_paths() {
+    // A scene of a scene directory, reading its mesh from a file there.
+    let scenes = recordings_dir("resim-scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let toml = include_str!("../../server/scenes/default.toml")
+        .replace("name = \"default\"", "name = \"from-file\"")
+        .replace("builtin:liver.msh", "liver.msh");
+    std::fs::write(scenes.join("from-file.toml"), toml).unwrap();
+    std::fs::write(
+        scenes.join("liver.msh"),
+        include_bytes!("../../server/meshes/liver.msh"),
+    )
+    .unwrap();
+    let dir = recordings_dir("resim-gone");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        scene_dir: Some(scenes.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: "from-file".into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let recorded = info.recording_file.clone().unwrap();
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: info.session_id.clone(),
+            reason: "recorded".into(),
+        })
+        .await
+        .unwrap();
+    std::fs::remove_file(scenes.join("liver.msh")).unwrap();
+    let request = v1::ReplayRequest {
+        file: recorded.clone(),
+        speed: Some(100.0),
+        start_offset_s: None,
+        mode: v1::ReplayMode::Resimulate as i32,
+    };
+    let status = match tokio::time::timeout(WAIT, recordings(&ch).replay(request))
+        .await
+        .unwrap()
+    {
+        Err(status) => status,
+        Ok(stream) => end_of(stream.into_inner())
+            .await
+            .expect("the replay ends with an error"),
+    };
+    assert_eq!(status.code(), Code::FailedPrecondition, "{status:?}");
+    let message = status.message();
+    assert!(message.contains(&recorded), "{message}");
+    assert!(message.contains("liver.msh"), "{message}");
+    assert!(
+        !message.contains(&*scenes.to_string_lossy()) && !message.contains("/tmp"),
+        "{message}"
+    );
+    server.shutdown().await.unwrap();
+    for d in [&dir, &scenes] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}

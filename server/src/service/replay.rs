@@ -151,8 +151,14 @@ pub fn read_resimulated(
     feed: mpsc::Sender<Result<Timed, Status>>,
 ) {
     let out = Feed { feed: &feed };
+    // The scene's folder is a server path, none of the client's business.
+    let scene_dir = recording.meta().scene_dir.clone();
     let cannot = |e: ResimError| {
-        Status::failed_precondition(format!("`{name}` cannot be re-simulated: {e}"))
+        let mut why = e.to_string();
+        if let Some(dir) = &scene_dir {
+            why = why.replace(&*dir.to_string_lossy(), "<scene directory>");
+        }
+        Status::failed_precondition(format!("`{name}` cannot be re-simulated: {why}"))
     };
     let mut run = match Resimulation::new(&recording, recording.meta(), None) {
         Ok(run) => run,
