@@ -22,8 +22,6 @@ mod halt;
 pub mod idle;
 pub mod input;
 mod mechanics;
-#[cfg(test)]
-mod tests_halt;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;

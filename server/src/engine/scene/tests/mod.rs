@@ -2,6 +2,9 @@ use std::path::Path;
 
 use super::*;
 
+mod files;
+mod limits;
+
 pub(crate) fn scene_dir() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
 }
