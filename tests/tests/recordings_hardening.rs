@@ -294,6 +294,43 @@ fn has_control(text: &str) -> bool {
     text.chars().any(laparo_proto::text::needs_escape)
 }
 
+/// A server recording to a new directory `label` and offering the scenes of the
+/// directory `scenes`, and the file of a session of scene `scene` it recorded and
+/// closed.
+async fn record_scene_of(
+    label: &str,
+    scenes: &Path,
+    scene: &str,
+) -> (TestServer, Channel, PathBuf, String) {
+    let dir = recordings_dir(label);
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        scene_dir: Some(scenes.to_path_buf()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: scene.into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let recorded = info.recording_file.clone().unwrap();
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: info.session_id.clone(),
+            reason: "recorded".into(),
+        })
+        .await
+        .unwrap();
+    (server, ch, dir, recorded)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escapes() {
     // A scene whose name is terminal escapes: it reaches the recording's metadata.
@@ -305,33 +342,8 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
         "name = \"evil\\u001b]0;owned\\u0007\\u001b[2J\"",
     );
     std::fs::write(scenes.join("evil.toml"), toml).unwrap();
-    let dir = recordings_dir("escape");
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        scene_dir: Some(scenes.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
-    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: evil.into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let recorded = info.recording_file.clone().unwrap();
+    let (server, ch, dir, recorded) = record_scene_of("escape", &scenes, evil).await;
     assert!(!has_control(&recorded));
-    sessions
-        .close_session(v1::CloseSessionRequest {
-            session_id: info.session_id.clone(),
-            reason: "recorded".into(),
-        })
-        .await
-        .unwrap();
 
     // Beside it: a link to a recording outside the directory, links to a device
     // and to a FIFO, a FIFO, a directory, and a file named with escapes.
@@ -478,32 +490,7 @@ async fn a_recording_whose_mesh_is_gone_cannot_be_resimulated_and_says_so_withou
         include_bytes!("../../server/meshes/liver.msh"),
     )
     .unwrap();
-    let dir = recordings_dir("resim-gone");
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        scene_dir: Some(scenes.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
-    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: "from-file".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let recorded = info.recording_file.clone().unwrap();
-    sessions
-        .close_session(v1::CloseSessionRequest {
-            session_id: info.session_id.clone(),
-            reason: "recorded".into(),
-        })
-        .await
-        .unwrap();
+    let (server, ch, dir, recorded) = record_scene_of("resim-gone", &scenes, "from-file").await;
     std::fs::remove_file(scenes.join("liver.msh")).unwrap();
     let request = v1::ReplayRequest {
         file: recorded.clone(),
