@@ -53,6 +53,10 @@ struct ServeArgs {
     /// Poses per second per instrument a station may send.
     #[arg(long, default_value_t = 2000.0, value_parser = positive_rate)]
     max_pose_rate: f64,
+    /// Seconds a station may send nothing (no pose, no heartbeat), or take none of
+    /// the server's messages, before it loses its instruments (0.5 to 3600).
+    #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = station_timeout)]
+    station_timeout: f64,
     /// Listen on a non-loopback address without TLS and tokens.
     #[arg(long)]
     insecure: bool,
@@ -68,6 +72,13 @@ struct ServeArgs {
 fn idle_seconds(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
     laparo_server::session::idle_timeout(v)?;
+    Ok(v)
+}
+
+/// A station timeout in seconds, within the range the server accepts.
+fn station_timeout(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    laparo_server::service::StationTimeout::from_secs(v)?;
     Ok(v)
 }
 
@@ -93,6 +104,8 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             rate_hz: args.max_pose_rate,
             burst: laparo_server::session::input::stall_burst(args.max_pose_rate),
         },
+        station_timeout: laparo_server::service::StationTimeout::from_secs(args.station_timeout)
+            .map_err(|e| format!("--station-timeout: {e}"))?,
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),
     };

@@ -14,6 +14,7 @@ pub mod catalog;
 pub mod decode_status;
 pub mod join_rate;
 pub mod limits;
+pub mod liveness;
 pub mod observe;
 pub mod read_status;
 pub mod recordings;
@@ -40,6 +41,7 @@ use tonic::transport::{Identity, Server, ServerTlsConfig};
 pub use auth::{Caller, Role, TokenListError, Tokens, TokensError};
 pub use catalog::{CatalogError, SceneCatalog};
 use decode_status::ContractStatus;
+pub use liveness::StationTimeout;
 pub use registry::Registry;
 pub use station::PoseLimits;
 
@@ -68,6 +70,9 @@ pub struct ServeConfig {
     /// Default idle timeout of sessions; `None`: never.
     pub idle_timeout: Option<Duration>,
     pub pose_limits: PoseLimits,
+    /// How long a station may send nothing, or take nothing, before it loses its
+    /// instruments ([`liveness`]).
+    pub station_timeout: StationTimeout,
     /// Listen on a non-loopback address without TLS and tokens anyway.
     pub insecure: bool,
     /// Directory sessions are recorded in (created if missing); `None`: no
@@ -156,6 +161,7 @@ pub async fn serve(
         station::StationService {
             registry: registry.clone(),
             limits: config.pose_limits,
+            timeout: config.station_timeout,
         }
     );
     let observe = service!(

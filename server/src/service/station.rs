@@ -21,6 +21,15 @@
 //! release the station's instruments, which are withdrawn from the body (the
 //! tissue they held is let go) and have no holder until a station claims them
 //! again.
+//!
+//! The server also ends the stream of a station that is gone ([`liveness`]: silent
+//! or frozen for the station timeout; `DEADLINE_EXCEEDED`, after a
+//! `STATION_TIMED_OUT` event) or that an instructor evicts
+//! ([`Session::evict`]; `ABORTED` naming who and why, after a `STATION_EVICTED`
+//! event). Either way the status goes out ahead of anything still queued for the
+//! station, and the instruments are released as above.
+//!
+//! [`liveness`]: super::liveness
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -30,15 +39,15 @@ use laparo_proto::text::printable;
 use laparo_proto::v1;
 use laparo_proto::v1::ErrorCode;
 use laparo_proto::v1::station_message::Kind;
-use tokio::sync::{mpsc, watch};
-use tokio_stream::wrappers::ReceiverStream;
+use tokio::sync::{mpsc, oneshot, watch};
 use tonic::{Request, Response, Status, Streaming};
 
 use super::auth::{Role, caller};
 use super::decode_status::contract_status;
+use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
-use crate::session::{PoseIn, RateLimit, Rejection, Session, check_pose};
+use crate::session::{Eviction, PoseIn, RateLimit, Rejection, Session, check_pose};
 
 /// How long a station has to send its opening message.
 pub const OPEN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -73,13 +82,15 @@ impl Default for PoseLimits {
 pub struct StationService {
     pub registry: Arc<Registry>,
     pub limits: PoseLimits,
+    /// How long a station may be silent or frozen ([`super::liveness`]).
+    pub timeout: StationTimeout,
 }
 
 type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
 
 #[tonic::async_trait]
 impl v1::station_server::Station for StationService {
-    type JoinStream = ReceiverStream<Result<v1::ServerMessage, Status>>;
+    type JoinStream = Outbound<v1::ServerMessage>;
 
     async fn join(
         &self,
@@ -139,7 +150,7 @@ impl v1::station_server::Station for StationService {
             claimed.push(k);
         }
         let rate = frame_rate(open.surface_frame_rate_hz, session.scene.mechanics.rate_hz)?;
-        let station = {
+        let (station, evicted) = {
             let mut roster = session.roster();
             for &k in &claimed {
                 if let Some(holder) = roster.holders[k] {
@@ -149,14 +160,15 @@ impl v1::station_server::Station for StationService {
                     )));
                 }
             }
-            Session::add_station(
+            let station = Session::add_station(
                 &mut roster,
                 role,
                 // Escaped once here: the name goes into events and session infos.
                 &printable(&open.client_name),
                 &claimed,
                 open.instruments.clone(),
-            )
+            );
+            (station, Session::eviction_handle(&mut roster, station))
         };
         session.publish(
             v1::EventKind::StationJoined,
@@ -189,10 +201,18 @@ impl v1::station_server::Station for StationService {
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
         tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
-        let limits = self.limits;
+        let taken = Taken::new(Instant::now());
+        let (outbound, cut) = Outbound::new(rx, taken.clone());
+        let reader = Reader {
+            limits: self.limits,
+            liveness: Liveness::new(self.timeout, Instant::now(), taken),
+            check_period: self.timeout.check_period(),
+            evicted,
+        };
         tokio::spawn(async move {
             let _connected = connected;
-            receive(&session, station, &claimed, inbound, &tx, limits).await;
+            let ending = receive(&session, station, &claimed, inbound, &tx, reader).await;
+            let evicted = end(&session, station, ending, cut);
             session.remove_station(station);
             session.publish(
                 v1::EventKind::StationLeft,
@@ -201,8 +221,48 @@ impl v1::station_server::Station for StationService {
                 String::new(),
             );
             let _ = done_tx.send(true);
+            if let Some(done) = evicted {
+                let _ = done.send(());
+            }
         });
-        Ok(Response::new(ReceiverStream::new(rx)))
+        Ok(Response::new(outbound))
+    }
+}
+
+/// How a station's reading ended.
+enum Ending {
+    /// It left, half-closed, broke, was closed for abuse, or its session closed:
+    /// its stream says so by itself.
+    Ended,
+    /// It was silent or frozen for the station timeout.
+    Gone(Gone),
+    /// An instructor evicted it.
+    Evicted(Eviction),
+}
+
+/// Announces a station ended by the server (timed out or evicted) and cuts its
+/// stream with the status that says why; the eviction's acknowledgement, to send
+/// once its instruments are free.
+fn end(
+    session: &Session,
+    station: u64,
+    ending: Ending,
+    cut: oneshot::Sender<Status>,
+) -> Option<oneshot::Sender<()>> {
+    match ending {
+        Ending::Ended => None,
+        Ending::Gone(gone) => {
+            let detail = format!("station {station} {gone}: its instruments are released");
+            let _ = cut.send(Status::deadline_exceeded(detail.clone()));
+            session.publish(v1::EventKind::StationTimedOut, Some(station), None, detail);
+            None
+        }
+        Ending::Evicted(e) => {
+            let detail = format!("evicted by `{}`: {}", e.by, e.reason);
+            let _ = cut.send(Status::aborted(format!("station {station} {detail}")));
+            session.publish(v1::EventKind::StationEvicted, Some(station), None, detail);
+            Some(e.done)
+        }
     }
 }
 
@@ -225,15 +285,32 @@ struct Claim {
     last: Option<u64>,
 }
 
-/// Reads the station's messages until it leaves, drops, or is closed for abuse.
+/// What the reader of a station's messages watches besides them.
+struct Reader {
+    limits: PoseLimits,
+    liveness: Liveness,
+    check_period: Duration,
+    evicted: oneshot::Receiver<Eviction>,
+}
+
+/// Reads the station's messages until it leaves, drops, is closed for abuse, is
+/// found gone or is evicted.
 async fn receive(
     session: &Arc<Session>,
     station: u64,
     claimed: &[usize],
     mut inbound: Streaming<v1::StationMessage>,
     tx: &Out,
-    limits: PoseLimits,
-) {
+    reader: Reader,
+) -> Ending {
+    let Reader {
+        limits,
+        mut liveness,
+        check_period,
+        mut evicted,
+    } = reader;
+    let mut check = tokio::time::interval(check_period);
+    check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut claims: Vec<Claim> = claimed
         .iter()
         .map(|&index| Claim {
@@ -250,23 +327,37 @@ async fn receive(
         // A closing session stops reading too, so that the stream ends on both sides.
         let next = tokio::select! {
             m = inbound.message() => m,
-            _ = closing.wait_for(Option::is_some) => return,
+            _ = closing.wait_for(Option::is_some) => return Ending::Ended,
+            e = &mut evicted => match e {
+                Ok(e) => return Ending::Evicted(e),
+                // Removed from the roster by whoever evicted it, past the wait.
+                Err(_) => return Ending::Ended,
+            },
+            _ = check.tick() => {
+                let waiting = tx.capacity() < OUTBOUND;
+                match liveness.check(Instant::now(), waiting) {
+                    Some(gone) => return Ending::Gone(gone),
+                    None => continue,
+                }
+            }
         };
+        liveness.heard(Instant::now());
         let message = match next {
             Ok(Some(m)) => m,
-            Ok(None) => return,
+            Ok(None) => return Ending::Ended,
             Err(status) => {
                 // A transport error, a message that does not decode or one over the
                 // size limit: tell the station why, if it can still hear, with the
                 // contract's code.
                 let _ = tx.try_send(Err(contract_status(status)));
-                return;
+                return Ending::Ended;
             }
         };
         let now = start.elapsed().as_secs_f64();
         let result = match message.kind {
             Some(Kind::Pose(p)) => accept_pose(session, station, &mut claims, &p, now),
-            Some(Kind::Leave(_)) => return,
+            Some(Kind::Heartbeat(_)) => Ok(()),
+            Some(Kind::Leave(_)) => return Ending::Ended,
             Some(Kind::Open(_)) => Err((
                 Rejection {
                     code: ErrorCode::AlreadyJoined,
@@ -334,7 +425,7 @@ async fn receive(
                 ))
             };
             let _ = tx.send(Err(status)).await;
-            return;
+            return Ending::Ended;
         }
     }
 }
