@@ -62,7 +62,7 @@ struct ServeArgs {
     /// Record no session.
     #[arg(long, conflicts_with = "recordings")]
     no_recording: bool,
-    /// Most sessions open at once [default: max(1, min(32 × cores, memory / 64 MiB))].
+    /// Most sessions open at once [default: max(1, min(16 × cores, memory / 64 MiB))].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     max_sessions: Option<u32>,
     /// Most connections open at once; more are closed as they come [default:

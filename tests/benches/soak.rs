@@ -461,7 +461,7 @@ async fn ramp(a: &Args) {
          observers; a step holds when its 10 s window misses no deadline",
         a.step
     );
-    let (server, url) = start_server(10_000).await;
+    let (server, url) = start_server(512).await;
     let pid = server.child.id();
     let mut tasks = JoinSet::new();
     let mut held = 0;

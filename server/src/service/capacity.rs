@@ -5,14 +5,14 @@
 //! The defaults, for a machine of `c` cores (`available_parallelism`), `m` bytes of
 //! memory (`MemTotal`) and a soft limit of `f` file descriptors (`RLIMIT_NOFILE`):
 //!
-//! - **sessions** = max(1, min(32·c, m / 64 MiB)). A default session's mechanics
-//!   thread ticks at 50 Hz for about 0.3 ms a tick on one core of a 2024 laptop,
-//!   1.5 % of a core, and its recorder and frame encoding as much again: 32 a core
-//!   leaves the core a third idle for the stations' streams, so that no session
-//!   misses its deadlines (the soak bench, `tests/benches/soak.rs`, checks this
-//!   figure on a machine: its ramp mode finds how many it holds). A default session
-//!   holds about 3 MB (model, buffers, recorder); 64 MiB each keeps sessions of
-//!   larger meshes from exhausting a small machine.
+//! - **sessions** = max(1, min(16·c, m / 64 MiB)). A default session ticks at
+//!   60 Hz; its tick, its recorder and the encoding of its frames for two 1 kHz
+//!   stations and an observer or two take a few percent of a core. The soak bench's
+//!   ramp (`cargo bench -p laparo-tests --bench soak -- --ramp`) on a 2-core machine,
+//!   with its clients on the same cores, held 32 sessions without a missed deadline
+//!   and missed at 40: 16 a core. A default session holds about 3.3 MiB (RSS) and
+//!   two threads (mechanics, recorder); 64 MiB each leaves room for sessions of
+//!   larger meshes on a small machine.
 //! - **connections** = max(16, min(8·sessions + 64, f − 128 − 2·sessions)). A
 //!   session has two stations and a few observers; 64 more for listing, replays
 //!   and tools. Each connection is a descriptor, each session holds up to two
@@ -34,7 +34,7 @@ const SESSION_MEMORY: u64 = 64 << 20;
 /// Budget of memory per replay in the default limit, bytes.
 const REPLAY_MEMORY: u64 = 16 << 20;
 /// Sessions per core in the default limit.
-const SESSIONS_PER_CORE: usize = 32;
+const SESSIONS_PER_CORE: usize = 16;
 /// Replays per core in the default limit.
 const REPLAYS_PER_CORE: usize = 32;
 /// File descriptors kept for the process's own files.
@@ -198,14 +198,14 @@ mod tests {
     const GIB: u64 = 1 << 30;
 
     #[test]
-    fn a_two_core_machine_holds_the_goal_of_64_sessions() {
+    fn a_two_core_machine_holds_32_sessions_as_measured() {
         let c = Capacity::for_machine(Machine {
             cores: 2,
             memory_bytes: 16 * GIB,
             fd_limit: 1 << 20,
         });
-        assert_eq!(c.sessions, 64);
-        assert_eq!(c.connections, 8 * 64 + 64);
+        assert_eq!(c.sessions, 32);
+        assert_eq!(c.connections, 8 * 32 + 64);
         assert_eq!(c.replays, 64);
     }
 
@@ -217,6 +217,12 @@ mod tests {
             fd_limit: 1 << 20,
         });
         assert_eq!(c.sessions, 16, "1 GiB at 64 MiB a session");
+        let c = Capacity::for_machine(Machine {
+            cores: 8,
+            memory_bytes: 512 << 20,
+            fd_limit: 1 << 20,
+        });
+        assert_eq!(c.sessions, 8);
         assert_eq!(c.replays, 16, "a quarter of 1 GiB at 16 MiB a replay");
     }
 
@@ -227,7 +233,13 @@ mod tests {
             memory_bytes: 16 * GIB,
             fd_limit: 1024,
         });
-        assert_eq!(c.connections, 1024 - 128 - 2 * 64);
+        assert_eq!(c.connections, 8 * 32 + 64);
+        let c = Capacity::for_machine(Machine {
+            cores: 2,
+            memory_bytes: 16 * GIB,
+            fd_limit: 256,
+        });
+        assert_eq!(c.connections, 256 - 128 - 2 * 32);
         // Even a tiny limit leaves a few connections, and never zero sessions.
         let tiny = Capacity::for_machine(Machine {
             cores: 0,
