@@ -466,13 +466,13 @@ async fn ramp(a: &Args) {
     let mut tasks = JoinSet::new();
     let mut held = 0;
     let mut n = 0;
-    loop {
+    'ramp: loop {
         for _ in 0..a.step {
             let id = match create(&url).await {
                 Ok(id) => id,
                 Err(e) => {
                     println!("cannot create session {}: {}", n + 1, e.message());
-                    break;
+                    break 'ramp;
                 }
             };
             n += 1;

@@ -217,13 +217,14 @@ mod tests {
             fd_limit: 1 << 20,
         });
         assert_eq!(c.sessions, 16, "1 GiB at 64 MiB a session");
+        assert_eq!(c.replays, 16, "a quarter of 1 GiB at 16 MiB a replay");
         let c = Capacity::for_machine(Machine {
             cores: 8,
             memory_bytes: 512 << 20,
             fd_limit: 1 << 20,
         });
         assert_eq!(c.sessions, 8);
-        assert_eq!(c.replays, 16, "a quarter of 1 GiB at 16 MiB a replay");
+        assert_eq!(c.replays, 8);
     }
 
     #[test]
