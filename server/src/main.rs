@@ -66,6 +66,29 @@ struct ServeArgs {
     /// Record no session.
     #[arg(long, conflicts_with = "recordings")]
     no_recording: bool,
+    /// Most sessions open at once [default: max(1, min(16 × cores, memory / 64 MiB))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    max_sessions: Option<u32>,
+    /// Most connections open at once; more are closed as they come [default:
+    /// max(16, min(8 × sessions + 64, fd limit − 128 − 2 × sessions))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    max_connections: Option<u32>,
+    /// Most replays streaming at once [default: max(1, min(32 × cores, memory / 4 / 16 MiB))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    max_replays: Option<u32>,
+    /// Close a connection with no open stream after this many seconds (at most 86400).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = idle_connection_seconds)]
+    idle_connection: f64,
+}
+
+/// An idle-connection timeout in seconds: (0, 86400].
+fn idle_connection_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 86_400.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a duration in (0, 86400] seconds"))
+    }
 }
 
 /// An idle timeout in seconds, within the range sessions accept.
@@ -84,6 +107,8 @@ fn station_timeout(s: &str) -> Result<f64, String> {
 
 /// Serves until SIGINT or SIGTERM.
 fn serve(args: ServeArgs) -> Result<(), String> {
+    use laparo_server::service::capacity::{Capacity, Machine};
+    use laparo_server::service::shutdown::RUNTIME_GRACE;
     use laparo_server::service::{PoseLimits, ServeConfig, TlsFiles, Tokens, serve};
     let tokens = args
         .tokens
@@ -108,16 +133,36 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             .map_err(|e| format!("--station-timeout: {e}"))?,
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),
+        capacity: {
+            let machine = Machine::this();
+            let mut capacity = Capacity::for_machine(machine);
+            if let Some(n) = args.max_sessions {
+                // The connection default follows the session limit.
+                capacity = capacity.with_sessions(n as usize, machine);
+            }
+            if let Some(n) = args.max_connections {
+                capacity.connections = n as usize;
+            }
+            if let Some(n) = args.max_replays {
+                capacity.replays = n as usize;
+            }
+            capacity
+        },
+        idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
-    runtime.block_on(async move {
+    let served = runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(args.listen)
             .await
             .map_err(|e| format!("cannot listen on {}: {e}", args.listen))?;
         serve(config, listener, shutdown_signal())
             .await
             .map_err(|e| e.to_string())
-    })
+    });
+    // Tasks still running (a replay's read burst) get a bounded time, not forever:
+    // part of the shutdown bound.
+    runtime.shutdown_timeout(RUNTIME_GRACE);
+    served
 }
 
 /// SIGINT (Ctrl-C) or SIGTERM.

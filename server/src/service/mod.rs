@@ -7,10 +7,17 @@
 //! it cannot read with the contract's codes ([`decode_status`]). The server refuses to
 //! listen on a non-loopback address unless it has both TLS and tokens, or is told
 //! `insecure`. On shutdown every session closes: open streams end with
-//! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
+//! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns,
+//! within [`shutdown::SHUTDOWN_BOUND`] whatever the clients do.
+//!
+//! What the server takes on at once is limited ([`capacity`]: sessions,
+//! connections, replays); its connections are accepted by its own loop
+//! ([`connections`]: counted, closed when idle, severed at shutdown).
 
 pub mod auth;
+pub mod capacity;
 pub mod catalog;
+pub mod connections;
 pub mod decode_status;
 pub mod join_rate;
 pub mod limits;
@@ -22,6 +29,7 @@ pub mod registry;
 pub mod replay;
 pub mod scenes;
 pub mod sessions;
+pub mod shutdown;
 pub mod station;
 pub mod stream;
 
@@ -34,7 +42,6 @@ use std::time::Duration;
 use laparo_proto::v1;
 use thiserror::Error;
 use tokio::net::TcpListener;
-use tokio_stream::wrappers::TcpListenerStream;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Identity, Server, ServerTlsConfig};
 
@@ -78,6 +85,11 @@ pub struct ServeConfig {
     /// Directory sessions are recorded in (created if missing); `None`: no
     /// recording.
     pub recordings: Option<PathBuf>,
+    /// Sessions, connections and replays at once (default: derived from the machine).
+    pub capacity: capacity::Capacity,
+    /// A connection with no open stream this long is closed; `None`:
+    /// [`connections::DEFAULT_IDLE_CONNECTION`].
+    pub idle_connection: Option<Duration>,
 }
 
 #[derive(Debug, Error)]
@@ -117,11 +129,10 @@ pub async fn serve(
         // Sessions still run; each reports that it cannot record.
         tracing::warn!(dir = %dir.display(), "cannot create the recordings directory: {e}");
     }
-    let registry = Arc::new(Registry::new(
-        catalog,
-        config.idle_timeout,
-        config.recordings.clone(),
-    ));
+    let registry = Arc::new(
+        Registry::new(catalog, config.idle_timeout, config.recordings.clone())
+            .with_capacity(config.capacity),
+    );
     let auth = auth::Authenticate::new(config.tokens.clone());
 
     let reflection_v1 = tonic_reflection::server::Builder::configure()
@@ -189,7 +200,17 @@ pub async fn serve(
             .await;
     }
 
-    let mut builder = Server::builder();
+    let limits = connections::ConnectionLimits {
+        max: config.capacity.connections,
+        idle: config
+            .idle_connection
+            .unwrap_or(connections::DEFAULT_IDLE_CONNECTION),
+        keepalive_interval: connections::DEFAULT_KEEPALIVE_INTERVAL,
+        keepalive_timeout: connections::DEFAULT_KEEPALIVE_TIMEOUT,
+    };
+    let mut builder = Server::builder()
+        .http2_keepalive_interval(Some(limits.keepalive_interval))
+        .http2_keepalive_timeout(Some(limits.keepalive_timeout));
     if let Some(tls) = &config.tls {
         let read = |p: &PathBuf| {
             std::fs::read(p).map_err(|e| ServeError::Tls(format!("{}: {e}", p.display())))
@@ -199,9 +220,19 @@ pub async fn serve(
             .tls_config(ServerTlsConfig::new().identity(identity))
             .map_err(|e| ServeError::Tls(e.to_string()))?;
     }
-    tracing::info!(%addr, tls = config.tls.is_some(), tokens = config.tokens.is_some(), "serving laparo.v1");
-    let closing = registry.clone();
+    tracing::info!(
+        %addr,
+        tls = config.tls.is_some(),
+        tokens = config.tokens.is_some(),
+        sessions = config.capacity.sessions,
+        connections = config.capacity.connections,
+        replays = config.capacity.replays,
+        "serving laparo.v1"
+    );
+    let severance = connections::Severance::default();
+    let incoming = connections::incoming(listener, limits, Default::default(), severance.clone());
     builder
+        .layer(connections::CountStreamsLayer)
         .add_service(health)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
@@ -210,11 +241,10 @@ pub async fn serve(
         .add_service(station)
         .add_service(observe)
         .add_service(recordings)
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async move {
-            shutdown.await;
-            tracing::info!("shutting down: closing every session");
-            tokio::task::block_in_place(|| closing.close_all("server shutting down"));
-        })
+        .serve_with_incoming_shutdown(
+            incoming,
+            shutdown::on_signal(shutdown, registry.clone(), severance),
+        )
         .await?;
     Ok(())
 }
