@@ -9,6 +9,7 @@
 //! `insecure`. On shutdown every session closes: open streams end with
 //! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
 
+pub mod attach;
 pub mod auth;
 pub mod catalog;
 pub mod decode_status;
@@ -156,6 +157,7 @@ pub async fn serve(
         station::StationService {
             registry: registry.clone(),
             limits: config.pose_limits,
+            attachments: Default::default(),
         }
     );
     let observe = service!(

@@ -1,4 +1,6 @@
-//! `Station.Join`: a trainee station's bidirectional stream.
+//! `Station.Join`: a trainee station's bidirectional stream; and `Station.Attach`
+//! with `Station.SendPoses`, the same station split into a server stream and unary
+//! calls for browsers ([`super::attach`]).
 //!
 //! The first message must be `open` (a `JoinRequest`), within [`OPEN_TIMEOUT`]; the
 //! server checks the role (`ROLE_UNSPECIFIED` is `INVALID_ARGUMENT`), the session and
@@ -34,6 +36,7 @@ use tokio::sync::{mpsc, watch};
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status, Streaming};
 
+use super::attach::{AttachStream, Attachments};
 use super::auth::{Role, caller};
 use super::decode_status::contract_status;
 use super::registry::Registry;
@@ -73,6 +76,8 @@ impl Default for PoseLimits {
 pub struct StationService {
     pub registry: Arc<Registry>,
     pub limits: PoseLimits,
+    /// Stations opened by Attach, by handle.
+    pub attachments: Arc<Attachments>,
 }
 
 type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
@@ -80,15 +85,14 @@ type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
 #[tonic::async_trait]
 impl v1::station_server::Station for StationService {
     type JoinStream = ReceiverStream<Result<v1::ServerMessage, Status>>;
+    type AttachStream = AttachStream;
 
     async fn join(
         &self,
         request: Request<Streaming<v1::StationMessage>>,
     ) -> Result<Response<Self::JoinStream>, Status> {
         let caller = caller(&request)?;
-        let peer = request.remote_addr().map(|a| a.ip().to_string());
-        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
-        self.registry.joins.admit(&key, std::time::Instant::now())?;
+        self.admit(&caller, &request)?;
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
@@ -102,6 +106,60 @@ impl v1::station_server::Station for StationService {
                 "the first message of Join must be `open` (a JoinRequest)",
             ));
         };
+        let opened = self.open(&caller, &open)?;
+        let rx = opened.run(Inbound::Join(Box::new(inbound)), self.limits, || {});
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+
+    async fn attach(
+        &self,
+        request: Request<v1::JoinRequest>,
+    ) -> Result<Response<Self::AttachStream>, Status> {
+        let caller = caller(&request)?;
+        self.admit(&caller, &request)?;
+        let opened = self.open(&caller, request.get_ref())?;
+        let (handle, poses) = self.attachments.attach(caller)?;
+        let attachments = self.attachments.clone();
+        let ended = handle.clone();
+        let rx = opened.run(Inbound::Attach(poses), self.limits, move || {
+            attachments.detach(&ended)
+        });
+        Ok(Response::new(super::attach::stream(handle, rx)))
+    }
+
+    async fn send_poses(
+        &self,
+        request: Request<v1::SendPosesRequest>,
+    ) -> Result<Response<v1::SendPosesResponse>, Status> {
+        let caller = caller(&request)?;
+        let queued = self.attachments.send(&caller, request.into_inner())?;
+        Ok(Response::new(v1::SendPosesResponse { queued }))
+    }
+}
+
+/// A station granted and announced, before its stream runs.
+struct Opened {
+    session: Arc<Session>,
+    station: u64,
+    claimed: Vec<usize>,
+    rate: f64,
+    tx: Out,
+    rx: mpsc::Receiver<Result<v1::ServerMessage, Status>>,
+}
+
+impl StationService {
+    /// The per-caller join rate (token name and peer address), shared by Join and
+    /// Attach.
+    fn admit<T>(&self, caller: &super::auth::Caller, request: &Request<T>) -> Result<(), Status> {
+        let peer = request.remote_addr().map(|a| a.ip().to_string());
+        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
+        self.registry.joins.admit(&key, std::time::Instant::now())
+    }
+
+    /// Checks a `JoinRequest` (lengths, role, session, claims), adds the station
+    /// to the session and queues `Joined` and the recording's events: what Join
+    /// and Attach share.
+    fn open(&self, caller: &super::auth::Caller, open: &v1::JoinRequest) -> Result<Opened, Status> {
         super::limits::check_name("session_id", &open.session_id)?;
         super::limits::check_name("client_name", &open.client_name)?;
         super::limits::check_names("instruments", &open.instruments)?;
@@ -186,13 +244,42 @@ impl v1::station_server::Station for StationService {
                 kind: Some(v1::server_message::Kind::Event(event)),
             }));
         }
+        Ok(Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+        })
+    }
+}
+
+impl Opened {
+    /// Runs the station: frames and events out ([`pump`]), its messages in
+    /// ([`receive`]) until it leaves; then its instruments are released, the
+    /// departure told, and `ended` called. Returns the outgoing stream.
+    fn run(
+        self,
+        inbound: Inbound,
+        limits: PoseLimits,
+        ended: impl FnOnce() + Send + 'static,
+    ) -> mpsc::Receiver<Result<v1::ServerMessage, Status>> {
+        let Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+        } = self;
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
         tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
-        let limits = self.limits;
         tokio::spawn(async move {
             let _connected = connected;
             receive(&session, station, &claimed, inbound, &tx, limits).await;
+            ended();
             session.remove_station(station);
             session.publish(
                 v1::EventKind::StationLeft,
@@ -202,7 +289,23 @@ impl v1::station_server::Station for StationService {
             );
             let _ = done_tx.send(true);
         });
-        Ok(Response::new(ReceiverStream::new(rx)))
+        rx
+    }
+}
+
+/// Where a station's messages come from: Join's stream, or the queue SendPoses
+/// fills for a station opened by Attach.
+enum Inbound {
+    Join(Box<Streaming<v1::StationMessage>>),
+    Attach(mpsc::Receiver<v1::StationMessage>),
+}
+
+impl Inbound {
+    async fn message(&mut self) -> Result<Option<v1::StationMessage>, Status> {
+        match self {
+            Inbound::Join(stream) => stream.message().await,
+            Inbound::Attach(queue) => Ok(queue.recv().await),
+        }
     }
 }
 
@@ -230,7 +333,7 @@ async fn receive(
     session: &Arc<Session>,
     station: u64,
     claimed: &[usize],
-    mut inbound: Streaming<v1::StationMessage>,
+    mut inbound: Inbound,
     tx: &Out,
     limits: PoseLimits,
 ) {
@@ -248,9 +351,12 @@ async fn receive(
     let mut closing = session.closing();
     loop {
         // A closing session stops reading too, so that the stream ends on both sides.
+        // A station whose outgoing stream is gone (an Attach stream cancelled)
+        // has left.
         let next = tokio::select! {
             m = inbound.message() => m,
             _ = closing.wait_for(Option::is_some) => return,
+            _ = tx.closed() => return,
         };
         let message = match next {
             Ok(Some(m)) => m,
