@@ -62,6 +62,17 @@ struct ServeArgs {
     /// Record no session.
     #[arg(long, conflicts_with = "recordings")]
     no_recording: bool,
+    /// An origin (`http://host:port`) whose pages may call the server from a
+    /// browser (CORS); repeat for more. Without it only the console the server
+    /// serves itself may.
+    #[arg(long = "cors-origin", value_name = "ORIGIN", value_parser = cors_origin)]
+    cors_origins: Vec<String>,
+}
+
+/// An origin as CORS names it: `scheme://host[:port]`.
+fn cors_origin(s: &str) -> Result<String, String> {
+    laparo_server::console::parse_origin(s).map_err(|e| e.to_string())?;
+    Ok(s.to_string())
 }
 
 /// An idle timeout in seconds, within the range sessions accept.
@@ -95,6 +106,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         },
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),
+        cors_origins: args.cors_origins,
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
     runtime.block_on(async move {
