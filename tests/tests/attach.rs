@@ -53,7 +53,8 @@ fn join_request(session: &str, instruments: &[&str]) -> v1::JoinRequest {
 }
 
 fn device_pose(tip: [f64; 3], sequence: u64) -> v1::DevicePose {
-    let Some(v1::station_message::Kind::Pose(p)) = pose("left", tip, [0.0, 0.0, 1.0], sequence).kind
+    let Some(v1::station_message::Kind::Pose(p)) =
+        pose("left", tip, [0.0, 0.0, 1.0], sequence).kind
     else {
         unreachable!()
     };
@@ -148,14 +149,20 @@ async fn holder(ch: &Channel, session: &str) -> Option<u64> {
 async fn poses_sent_with_the_handle_drive_the_instrument() {
     let server = server(&[]).await;
     let ch = server.channel().await;
-    let session = create_session(ch.clone(), TEACHER).await.unwrap().session_id;
+    let session = create_session(ch.clone(), TEACHER)
+        .await
+        .unwrap()
+        .session_id;
     let (mut rx, handle) = attach(&ch, ALICE, &session).await.unwrap();
     assert_eq!(handle.len(), 32);
     let queued = send(
         &ch,
         ALICE,
         &handle,
-        vec![device_pose([0.0, 0.0, 0.09], 1), device_pose([0.0, 0.0, 0.088], 2)],
+        vec![
+            device_pose([0.0, 0.0, 0.09], 1),
+            device_pose([0.0, 0.0, 0.088], 2),
+        ],
         false,
     )
     .await
@@ -171,9 +178,15 @@ async fn poses_sent_with_the_handle_drive_the_instrument() {
     let tip = s.pose.unwrap().tip.unwrap();
     assert!((tip.z - 0.088).abs() < 1e-12, "{tip:?}");
     // A pose out of order is refused on the stream, as on Join's.
-    send(&ch, ALICE, &handle, vec![device_pose([0.0, 0.0, 0.09], 2)], false)
-        .await
-        .unwrap();
+    send(
+        &ch,
+        ALICE,
+        &handle,
+        vec![device_pose([0.0, 0.0, 0.09], 2)],
+        false,
+    )
+    .await
+    .unwrap();
     let error = next_where(&mut rx, |k| matches!(k, v1::server_message::Kind::Error(_))).await;
     assert!(
         matches!(&error, Some(v1::server_message::Kind::Error(e)) if e.code == v1::ErrorCode::OutOfOrder as i32 && e.sequence == Some(2)),
@@ -185,9 +198,19 @@ async fn poses_sent_with_the_handle_drive_the_instrument() {
 async fn a_handle_is_honoured_only_for_its_own_token_and_while_its_station_lasts() {
     let server = server(&[]).await;
     let ch = server.channel().await;
-    let session = create_session(ch.clone(), TEACHER).await.unwrap().session_id;
+    let session = create_session(ch.clone(), TEACHER)
+        .await
+        .unwrap()
+        .session_id;
     let (mut rx, handle) = attach(&ch, ALICE, &session).await.unwrap();
-    let stolen = send(&ch, BOB, &handle, vec![device_pose([0.0, 0.0, 0.09], 1)], false).await;
+    let stolen = send(
+        &ch,
+        BOB,
+        &handle,
+        vec![device_pose([0.0, 0.0, 0.09], 1)],
+        false,
+    )
+    .await;
     assert_eq!(stolen.unwrap_err().code(), Code::NotFound);
     let made_up = send(&ch, ALICE, &"0".repeat(32), vec![], false).await;
     assert_eq!(made_up.unwrap_err().code(), Code::NotFound);
@@ -219,7 +242,10 @@ async fn a_handle_is_honoured_only_for_its_own_token_and_while_its_station_lasts
 async fn dropping_the_attach_stream_leaves_the_session() {
     let server = server(&[]).await;
     let ch = server.channel().await;
-    let session = create_session(ch.clone(), TEACHER).await.unwrap().session_id;
+    let session = create_session(ch.clone(), TEACHER)
+        .await
+        .unwrap()
+        .session_id;
     let (rx, handle) = attach(&ch, ALICE, &session).await.unwrap();
     assert!(holder(&ch, &session).await.is_some());
     drop(rx);
@@ -229,7 +255,10 @@ async fn dropping_the_attach_stream_leaves_the_session() {
         }
     })
     .await;
-    assert!(released.is_ok(), "the instrument is still held after the stream was dropped");
+    assert!(
+        released.is_ok(),
+        "the instrument is still held after the stream was dropped"
+    );
     let after = send(&ch, ALICE, &handle, vec![], false).await;
     assert_eq!(after.unwrap_err().code(), Code::NotFound);
 }
@@ -242,7 +271,10 @@ async fn http(server: &TestServer, request: &str) -> String {
     let mut buf = [0u8; 4096];
     // The head is all the tests read: stop at the blank line.
     while !out.windows(4).any(|w| w == b"\r\n\r\n") {
-        let n = tokio::time::timeout(WAIT, s.read(&mut buf)).await.unwrap().unwrap();
+        let n = tokio::time::timeout(WAIT, s.read(&mut buf))
+            .await
+            .unwrap()
+            .unwrap();
         if n == 0 {
             break;
         }
