@@ -68,6 +68,8 @@ const METHODS: &[(&str, &str, &str, &str, bool, bool)] = &[
     ("Sessions", "ListSessions", "ListSessionsRequest", "ListSessionsResponse", false, false),
     ("Sessions", "CloseSession", "CloseSessionRequest", "CloseSessionResponse", false, false),
     ("Station", "Join", "StationMessage", "ServerMessage", true, true),
+    ("Station", "Attach", "JoinRequest", "AttachMessage", false, true),
+    ("Station", "SendPoses", "SendPosesRequest", "SendPosesResponse", false, false),
     ("Observe", "Observe", "ObserveRequest", "ObserveMessage", false, true),
     ("Recordings", "ListRecordings", "ListRecordingsRequest", "ListRecordingsResponse", false, false),
     ("Recordings", "Replay", "ReplayRequest", "ObserveMessage", false, true),
