@@ -69,6 +69,8 @@ const METHODS: &[(&str, &str, &str, &str, bool, bool)] = &[
     ("Sessions", "CloseSession", "CloseSessionRequest", "CloseSessionResponse", false, false),
     ("Sessions", "EvictStation", "EvictStationRequest", "EvictStationResponse", false, false),
     ("Station", "Join", "StationMessage", "ServerMessage", true, true),
+    ("Station", "Attach", "JoinRequest", "AttachMessage", false, true),
+    ("Station", "SendPoses", "SendPosesRequest", "SendPosesResponse", false, false),
     ("Observe", "Observe", "ObserveRequest", "ObserveMessage", false, true),
     ("Recordings", "ListRecordings", "ListRecordingsRequest", "ListRecordingsResponse", false, false),
     ("Recordings", "Replay", "ReplayRequest", "ObserveMessage", false, true),

@@ -79,6 +79,11 @@ struct ServeArgs {
     /// Close a connection with no open stream after this many seconds (at most 86400).
     #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = idle_connection_seconds)]
     idle_connection: f64,
+    /// An origin (`http://host:port`) whose pages may call the server from a
+    /// browser (CORS); repeat for more. Without it only the console the server
+    /// serves itself may.
+    #[arg(long = "cors-origin", value_name = "ORIGIN", value_parser = cors_origin)]
+    cors_origins: Vec<String>,
 }
 
 /// An idle-connection timeout in seconds: (0, 86400].
@@ -89,6 +94,12 @@ fn idle_connection_seconds(s: &str) -> Result<f64, String> {
     } else {
         Err(format!("{s} is not a duration in (0, 86400] seconds"))
     }
+}
+
+/// An origin as CORS names it: `scheme://host[:port]`.
+fn cors_origin(s: &str) -> Result<String, String> {
+    laparo_server::console::parse_origin(s).map_err(|e| e.to_string())?;
+    Ok(s.to_string())
 }
 
 /// An idle timeout in seconds, within the range sessions accept.
@@ -149,6 +160,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             capacity
         },
         idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
+        cors_origins: args.cors_origins,
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
     let served = runtime.block_on(async move {

@@ -3,6 +3,11 @@
 //! and the standard health service, so that grpcurl, grpcui and clients in other
 //! languages work without our code.
 //!
+//! The same port serves the browser console ([`crate::console`]): HTTP/1.1 is
+//! accepted, gRPC-web is translated to gRPC, cross-origin calls are refused
+//! unless `cors_origins` allows them, and only the console's static assets are
+//! served without a token.
+//!
 //! Every service runs the [`auth::Authenticate`] interceptor, and answers a request
 //! it cannot read with the contract's codes ([`decode_status`]). The server refuses to
 //! listen on a non-loopback address unless it has both TLS and tokens, or is told
@@ -14,6 +19,7 @@
 //! connections, replays); its connections are accepted by its own loop
 //! ([`connections`]: counted, closed when idle, severed at shutdown).
 
+pub mod attach;
 pub mod auth;
 pub mod capacity;
 pub mod catalog;
@@ -42,6 +48,7 @@ use std::time::Duration;
 use laparo_proto::v1;
 use thiserror::Error;
 use tokio::net::TcpListener;
+use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Identity, Server, ServerTlsConfig};
 
@@ -90,6 +97,9 @@ pub struct ServeConfig {
     /// A connection with no open stream this long is closed; `None`:
     /// [`connections::DEFAULT_IDLE_CONNECTION`].
     pub idle_connection: Option<Duration>,
+    /// Origins whose pages may call the server (CORS); empty: none but the
+    /// server's own (the console it serves).
+    pub cors_origins: Vec<String>,
 }
 
 #[derive(Debug, Error)]
@@ -108,6 +118,8 @@ pub enum ServeError {
     Io(#[from] std::io::Error),
     #[error("transport: {0}")]
     Transport(#[from] tonic::transport::Error),
+    #[error("{0}")]
+    Cors(#[from] crate::console::CorsError),
 }
 
 /// Serves the contract on `listener` until `shutdown` resolves, then closes every
@@ -122,6 +134,11 @@ pub async fn serve(
     if !addr.ip().is_loopback() && !secured && !config.insecure {
         return Err(ServeError::Insecure(addr));
     }
+    let origins = config
+        .cors_origins
+        .iter()
+        .map(|o| crate::console::parse_origin(o))
+        .collect::<Result<Vec<_>, _>>()?;
     let catalog = SceneCatalog::load(config.scene_dir.as_deref())?;
     if let Some(dir) = &config.recordings
         && let Err(e) = std::fs::create_dir_all(dir)
@@ -173,6 +190,7 @@ pub async fn serve(
             registry: registry.clone(),
             limits: config.pose_limits,
             timeout: config.station_timeout,
+            attachments: Default::default(),
         }
     );
     let observe = service!(
@@ -231,8 +249,8 @@ pub async fn serve(
     );
     let severance = connections::Severance::default();
     let incoming = connections::incoming(listener, limits, Default::default(), severance.clone());
-    builder
-        .layer(connections::CountStreamsLayer)
+    let mut routes = Routes::builder();
+    routes
         .add_service(health)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
@@ -240,7 +258,23 @@ pub async fn serve(
         .add_service(sessions)
         .add_service(station)
         .add_service(observe)
-        .add_service(recordings)
+        .add_service(recordings);
+    // gRPC-web translated to gRPC for the services (the browser console's calls);
+    // the console's static assets answer what no service does (outside the
+    // translation, which refuses any other HTTP/1.1 request).
+    let routes = Routes::from(
+        routes
+            .routes()
+            .into_axum_router()
+            .route_layer(tonic_web::GrpcWebLayer::new())
+            .fallback(crate::console::asset),
+    );
+    // HTTP/1.1 too: gRPC-web from a browser.
+    builder
+        .accept_http1(true)
+        .layer(connections::CountStreamsLayer)
+        .layer(crate::console::cors_layer(origins))
+        .add_routes(routes)
         .serve_with_incoming_shutdown(
             incoming,
             shutdown::on_signal(shutdown, registry.clone(), severance),

@@ -1,4 +1,6 @@
-//! `Station.Join`: a trainee station's bidirectional stream.
+//! `Station.Join`: a trainee station's bidirectional stream; and `Station.Attach`
+//! with `Station.SendPoses`, the same station split into a server stream and unary
+//! calls for browsers ([`super::attach`]).
 //!
 //! The first message must be `open` (a `JoinRequest`), within [`OPEN_TIMEOUT`]; the
 //! server checks the role (`ROLE_UNSPECIFIED` is `INVALID_ARGUMENT`), the session and
@@ -42,6 +44,7 @@ use laparo_proto::v1::station_message::Kind;
 use tokio::sync::{mpsc, oneshot, watch};
 use tonic::{Request, Response, Status, Streaming};
 
+use super::attach::{AttachStream, Attachments};
 use super::auth::{Role, caller};
 use super::decode_status::contract_status;
 use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
@@ -84,6 +87,8 @@ pub struct StationService {
     pub limits: PoseLimits,
     /// How long a station may be silent or frozen ([`super::liveness`]).
     pub timeout: StationTimeout,
+    /// Stations opened by Attach, by handle.
+    pub attachments: Arc<Attachments>,
 }
 
 type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
@@ -91,15 +96,14 @@ type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
 #[tonic::async_trait]
 impl v1::station_server::Station for StationService {
     type JoinStream = Outbound<v1::ServerMessage>;
+    type AttachStream = AttachStream;
 
     async fn join(
         &self,
         request: Request<Streaming<v1::StationMessage>>,
     ) -> Result<Response<Self::JoinStream>, Status> {
         let caller = caller(&request)?;
-        let peer = request.remote_addr().map(|a| a.ip().to_string());
-        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
-        self.registry.joins.admit(&key, std::time::Instant::now())?;
+        self.admit(&caller, &request)?;
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
@@ -113,6 +117,68 @@ impl v1::station_server::Station for StationService {
                 "the first message of Join must be `open` (a JoinRequest)",
             ));
         };
+        let opened = self.open(&caller, &open)?;
+        let outbound = opened.run(Inbound::Join(Box::new(inbound)), self.reading(), || {});
+        Ok(Response::new(outbound))
+    }
+
+    async fn attach(
+        &self,
+        request: Request<v1::JoinRequest>,
+    ) -> Result<Response<Self::AttachStream>, Status> {
+        let caller = caller(&request)?;
+        self.admit(&caller, &request)?;
+        let opened = self.open(&caller, request.get_ref())?;
+        let (handle, poses) = self.attachments.attach(caller)?;
+        let attachments = self.attachments.clone();
+        let ended = handle.clone();
+        let outbound = opened.run(Inbound::Attach(poses), self.reading(), move || {
+            attachments.detach(&ended)
+        });
+        Ok(Response::new(super::attach::stream(handle, outbound)))
+    }
+
+    async fn send_poses(
+        &self,
+        request: Request<v1::SendPosesRequest>,
+    ) -> Result<Response<v1::SendPosesResponse>, Status> {
+        let caller = caller(&request)?;
+        let queued = self.attachments.send(&caller, request.into_inner())?;
+        Ok(Response::new(v1::SendPosesResponse { queued }))
+    }
+}
+
+/// A station granted and announced, before its stream runs.
+struct Opened {
+    session: Arc<Session>,
+    station: u64,
+    claimed: Vec<usize>,
+    rate: f64,
+    tx: Out,
+    rx: mpsc::Receiver<Result<v1::ServerMessage, Status>>,
+    /// Where an instructor's eviction of the station arrives.
+    evicted: oneshot::Receiver<Eviction>,
+}
+
+impl StationService {
+    /// What the reader of a station's messages enforces: pose limits and the
+    /// station timeout.
+    fn reading(&self) -> (PoseLimits, StationTimeout) {
+        (self.limits, self.timeout)
+    }
+
+    /// The per-caller join rate (token name and peer address), shared by Join and
+    /// Attach.
+    fn admit<T>(&self, caller: &super::auth::Caller, request: &Request<T>) -> Result<(), Status> {
+        let peer = request.remote_addr().map(|a| a.ip().to_string());
+        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
+        self.registry.joins.admit(&key, std::time::Instant::now())
+    }
+
+    /// Checks a `JoinRequest` (lengths, role, session, claims), adds the station
+    /// to the session and queues `Joined` and the recording's events: what Join
+    /// and Attach share.
+    fn open(&self, caller: &super::auth::Caller, open: &v1::JoinRequest) -> Result<Opened, Status> {
         super::limits::check_name("session_id", &open.session_id)?;
         super::limits::check_name("client_name", &open.client_name)?;
         super::limits::check_names("instruments", &open.instruments)?;
@@ -198,21 +264,54 @@ impl v1::station_server::Station for StationService {
                 kind: Some(v1::server_message::Kind::Event(event)),
             }));
         }
+        Ok(Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+            evicted,
+        })
+    }
+}
+
+impl Opened {
+    /// Runs the station: frames and events out ([`pump`]), its messages in
+    /// ([`receive`]) until it leaves, is found gone or is evicted; then its
+    /// instruments are released, the departure told, and `ended` called. Returns
+    /// the outgoing stream.
+    fn run(
+        self,
+        inbound: Inbound,
+        (limits, timeout): (PoseLimits, StationTimeout),
+        ended: impl FnOnce() + Send + 'static,
+    ) -> Outbound<v1::ServerMessage> {
+        let Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+            evicted,
+        } = self;
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
         tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
         let taken = Taken::new(Instant::now());
         let (outbound, cut) = Outbound::new(rx, taken.clone());
         let reader = Reader {
-            limits: self.limits,
-            liveness: Liveness::new(self.timeout, Instant::now(), taken),
-            check_period: self.timeout.check_period(),
+            limits,
+            liveness: Liveness::new(timeout, Instant::now(), taken),
+            check_period: timeout.check_period(),
             evicted,
         };
         tokio::spawn(async move {
             let _connected = connected;
             let ending = receive(&session, station, &claimed, inbound, &tx, reader).await;
             let evicted = end(&session, station, ending, cut);
+            ended();
             session.remove_station(station);
             session.publish(
                 v1::EventKind::StationLeft,
@@ -225,7 +324,7 @@ impl v1::station_server::Station for StationService {
                 let _ = done.send(());
             }
         });
-        Ok(Response::new(outbound))
+        outbound
     }
 }
 
@@ -266,6 +365,22 @@ fn end(
     }
 }
 
+/// Where a station's messages come from: Join's stream, or the queue SendPoses
+/// fills for a station opened by Attach.
+enum Inbound {
+    Join(Box<Streaming<v1::StationMessage>>),
+    Attach(mpsc::Receiver<v1::StationMessage>),
+}
+
+impl Inbound {
+    async fn message(&mut self) -> Result<Option<v1::StationMessage>, Status> {
+        match self {
+            Inbound::Join(stream) => stream.message().await,
+            Inbound::Attach(queue) => Ok(queue.recv().await),
+        }
+    }
+}
+
 /// The role a `JoinRequest` states: trainee or instructor. `ROLE_UNSPECIFIED` and
 /// numbers the contract does not define are `INVALID_ARGUMENT` naming the field (a
 /// station must say what it is; it is never taken for a trainee).
@@ -299,7 +414,7 @@ async fn receive(
     session: &Arc<Session>,
     station: u64,
     claimed: &[usize],
-    mut inbound: Streaming<v1::StationMessage>,
+    mut inbound: Inbound,
     tx: &Out,
     reader: Reader,
 ) -> Ending {
@@ -311,6 +426,7 @@ async fn receive(
     } = reader;
     let mut check = tokio::time::interval(check_period);
     check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+
     let mut claims: Vec<Claim> = claimed
         .iter()
         .map(|&index| Claim {
@@ -325,9 +441,12 @@ async fn receive(
     let mut closing = session.closing();
     loop {
         // A closing session stops reading too, so that the stream ends on both sides.
+        // A station whose outgoing stream is gone (an Attach stream cancelled)
+        // has left.
         let next = tokio::select! {
             m = inbound.message() => m,
             _ = closing.wait_for(Option::is_some) => return Ending::Ended,
+            _ = tx.closed() => return Ending::Ended,
             e = &mut evicted => match e {
                 Ok(e) => return Ending::Evicted(e),
                 // Removed from the roster by whoever evicted it, past the wait.
