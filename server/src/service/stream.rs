@@ -168,12 +168,17 @@ pub async fn pump<M: Wrap>(
 /// Sends `message`, waiting for room, unless the stream is done first (a station
 /// found gone or evicted: its client may never take another message, and this
 /// task must not wait for it for ever). Whether it was sent.
+///
+/// The send is tried first: when a session closes, its station's reader stops and
+/// `done` fires at once, and a queue with room must still take the status that
+/// says why (an unbiased choice dropped it now and then).
 async fn send_unless_done<M>(
     tx: &mpsc::Sender<Result<M, Status>>,
     message: Result<M, Status>,
     done: &mut watch::Receiver<bool>,
 ) -> bool {
     tokio::select! {
+        biased;
         sent = tx.send(message) => sent.is_ok(),
         _ = done.wait_for(|d| *d) => false,
     }
