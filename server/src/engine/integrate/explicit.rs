@@ -2,11 +2,14 @@
 //!
 //! Each substep of length `h`:
 //!
-//! `v ← (v + h (g + f_i/m_i)) / (1 + h α)`,  `x ← x + h v`,  with `f = −K u`.
+//! `v ← (v + h (g + f_i/m_i)) / (1 + h α)`,  `x ← x + h v`,  with `f = −K u`
+//! (linear) or `f = −Σ_e R_e K_e (R_eᵀ x_e − X_e)` with the rotations extracted at
+//! the start of each substep (corotational).
 //!
 //! The damping term is taken implicitly (the division), so it never limits `h`; the
 //! elastic term is stable for `h ω_max < 2`. The substep count is chosen per tick from
-//! the Gershgorin bound `ω̂ ≥ ω_max` of the mesh and material, so no Young's modulus,
+//! the bound `ω̂ ≥ ω_max` of the mesh and material (for the corotational model, one
+//! that holds for every rotation of the elements), so no Young's modulus,
 //! Poisson ratio or tick length can make it blow up: a stiffer material simply takes
 //! more substeps. Imposed vertices move linearly from where they are to their target
 //! over the tick.
@@ -41,8 +44,7 @@ pub(super) fn step(
             taken = s - 1;
             break;
         }
-        state.displacement_into(model, &mut it.u);
-        model.stiffness.mul(&it.u, &mut it.f);
+        it.negated_elastic_force(model, &state.x);
         for i in 0..state.x.len() {
             if imposed.is_imposed(i) {
                 continue;
