@@ -163,9 +163,17 @@ impl Integrator {
         }
     }
 
-    /// `f = K u` (linear) or `f = Σ_e R_e K_e (R_eᵀ x_e − X_e)` (corotational, the
-    /// rotations extracted at `x`): the negated elastic force at `x`, N.
-    fn negated_elastic_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
+    /// Corotational: extracts the rotations at `x` and reassembles `K̂` and `o` with
+    /// them (for the substeps of a tick); nothing for a linear model.
+    fn freeze_rotations(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
+        if let Some(c) = &mut self.corotated {
+            c.update(model, x, &mut self.f);
+        }
+    }
+
+    /// `f = K u` (linear) or `f = Σ_e R_e K_e (R_eᵀ x_e − X_e)` with the rotations
+    /// extracted at `x` (corotational): the negated elastic force at `x`, N.
+    fn exact_negated_elastic_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         match &mut self.corotated {
             Some(c) => c.force(model, x, &mut self.f),
             None => {
@@ -251,34 +259,23 @@ impl Integrator {
 
     /// `reaction_i = −(K u)_i` on imposed vertices, zero elsewhere.
     ///
-    /// Corotational: `−(K̂ u + o)_i` with the rotations the implicit or static solve
-    /// used (the operator it solved with, rotations frozen over the tick), or with
-    /// rotations extracted at the end of an explicit step (which assembles no `K̂`).
+    /// Corotational: `−(K̂ u + o)_i`, with the rotations the implicit or static solve
+    /// used (frozen over the tick: the operator it solved with), or those of the end
+    /// of an explicit step.
     fn update_reaction(&mut self, model: &ElasticModel, state: &mut State, imposed: &Imposed) {
         state.displacement_into(model, &mut self.u);
         state
             .reaction
             .iter_mut()
             .for_each(|r| *r = Vector3::zeros());
-        let explicit = self.config.kind == IntegratorKind::Explicit;
-        match &mut self.corotated {
-            None => {
-                for &i in imposed.list() {
-                    state.reaction[i as usize] = -model.stiffness.row_times(i as usize, &self.u);
-                }
-            }
-            Some(c) if explicit => {
-                c.force(model, &state.x, &mut self.f);
-                for &i in imposed.list() {
-                    state.reaction[i as usize] = -self.f[i as usize];
-                }
-            }
-            Some(c) => {
-                for &i in imposed.list() {
-                    let i = i as usize;
-                    state.reaction[i] = -(c.tangent.row_times(i, &self.u) + c.offset[i]);
-                }
-            }
+        let (k, offset) = match &self.corotated {
+            Some(c) => (&c.tangent, Some(&c.offset)),
+            None => (&model.stiffness, None),
+        };
+        for &i in imposed.list() {
+            let i = i as usize;
+            let o = offset.map_or_else(Vector3::zeros, |o| o[i]);
+            state.reaction[i] = -(k.row_times(i, &self.u) + o);
         }
     }
 
