@@ -234,10 +234,9 @@ impl Corotated {
             let rs = e.volume * r * e.stress(&r.tr_mul(&f));
             let ro = e.volume * r * e.stress(&r);
             let gh = g.map(|g| r * g);
-            for k in 0..4 {
-                let v = e.tet[k] as usize;
-                out[v] += rs * g[k];
-                self.offset[v] += ro * g[k];
+            for (&v, g) in e.tet.iter().zip(&g) {
+                out[v as usize] += rs * g;
+                self.offset[v as usize] += ro * g;
             }
             for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
                 let mut block = e.lambda * gh[a] * gh[b].transpose()

@@ -111,7 +111,7 @@ mod tests {
         // F = R S with S symmetric positive definite: the extraction returns R.
         let s = Matrix3::new(1.2, 0.1, 0.0, 0.1, 0.9, -0.05, 0.0, -0.05, 1.1);
         for axis in [Vector3::x(), Vector3::new(1.0, 2.0, -0.5), Vector3::z()] {
-            for angle in [0.0, 0.3, 1.5707963267948966, 2.5, 3.1] {
+            for angle in [0.0, 0.3, std::f64::consts::FRAC_PI_2, 2.5, 3.1] {
                 let r = *Rotation3::new(axis.normalize() * angle).matrix();
                 let got = cold(&(r * s));
                 assert!((got - r).norm() <= 1e-10, "angle {angle}: {got} vs {r}");
