@@ -10,6 +10,8 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
+use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
 use laparo_server::headless;
 use laparo_server::headless::trajectory::Trajectory;
@@ -224,6 +226,10 @@ struct RunArgs {
     /// Write the final deformed volume mesh as VTK XML unstructured grid (.vtu).
     #[arg(long, value_name = "OUT.vtu")]
     export: Option<PathBuf>,
+    /// Write a time series for ParaView: a frame every T simulated seconds (and the
+    /// start and the end), as OUT_000000.vtu, ... beside OUT.pvd, which lists them.
+    #[arg(long, num_args = 2, value_names = ["T", "OUT.pvd"], conflicts_with = "static_solve")]
+    export_every: Option<Vec<String>>,
 }
 
 fn positive_rate(s: &str) -> Result<f64, String> {
@@ -265,7 +271,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// The period and path of `--export-every T OUT.pvd`, checked.
+fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
+    let [period, path] = values else {
+        return Err("--export-every takes a period in seconds and a .pvd path".into());
+    };
+    let seconds = positive_seconds(period).map_err(|e| format!("--export-every {period}: {e}"))?;
+    Ok((seconds, PathBuf::from(path)))
+}
+
 fn run(args: RunArgs) -> Result<(), String> {
+    let series = args.export_every.as_deref().map(export_every).transpose()?;
     let scene = match &args.scene {
         Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
         None => Scene::default_scene(),
@@ -327,25 +343,64 @@ fn run(args: RunArgs) -> Result<(), String> {
         );
     } else {
         let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
-        let summary = headless::run_scripted(&mut sim, seconds, script, |sim, report| {
-            let mut contact = String::new();
-            for ins in sim.instruments.iter().filter(|i| i.current.is_some()) {
-                contact += &format!(
-                    "  {}: {} held, {:.3} N",
-                    ins.name,
-                    ins.held.len(),
-                    ins.report.reaction.norm()
-                );
+        let mut pvd = None;
+        if let Some((period, path)) = &series {
+            // At most one frame a tick: T below the tick exports every tick.
+            let frames = (seconds / period.max(sim.dt)).floor() + 2.0;
+            if frames > pvd::MAX_FRAMES as f64 {
+                return Err(format!(
+                    "--export-every {period}: {frames} frames over {seconds} s; at most {} (raise T)",
+                    pvd::MAX_FRAMES
+                ));
             }
-            println!(
-                "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
-                sim.tick,
-                sim.time,
-                sim.max_displacement() * 1e3,
-                report.substeps,
-                report.cg_iterations
-            );
-        });
+            let mut series = PvdSeries::new(path);
+            series
+                .write_frame(&sim)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            pvd = Some((series, *period, sim.time, path.clone(), None));
+        }
+        let mut frame_due = |sim: &Simulation| -> bool {
+            let Some((series, period, last, path, error)) = &mut pvd else {
+                return true;
+            };
+            // Due when a period has passed (half a tick's slack against round-off).
+            if sim.time - *last + 0.5 * sim.dt < *period {
+                return true;
+            }
+            *last = sim.time;
+            match series.write_frame(sim) {
+                Ok(()) => true,
+                Err(e) => {
+                    *error = Some(format!("cannot write {}: {e}", path.display()));
+                    false
+                }
+            }
+        };
+        let summary = headless::run_observed(
+            &mut sim,
+            seconds,
+            script,
+            |sim, report| {
+                let mut contact = String::new();
+                for ins in sim.instruments.iter().filter(|i| i.current.is_some()) {
+                    contact += &format!(
+                        "  {}: {} held, {:.3} N",
+                        ins.name,
+                        ins.held.len(),
+                        ins.report.reaction.norm()
+                    );
+                }
+                println!(
+                    "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
+                    sim.tick,
+                    sim.time,
+                    sim.max_displacement() * 1e3,
+                    report.substeps,
+                    report.cg_iterations
+                );
+            },
+            &mut frame_due,
+        );
         println!(
             "ran {} ticks ({:.3} s simulated) in {:.3} s: tick median {:.3} ms, p99 {:.3} ms, max {:.3} ms; {:.1}x real time",
             summary.ticks,
@@ -362,6 +417,17 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.unconverged,
             summary.max_displacement * 1e3
         );
+        if let Some((mut series, _, last, path, error)) = pvd {
+            if let Some(e) = error {
+                return Err(e);
+            }
+            if last < sim.time {
+                series
+                    .write_frame(&sim)
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            }
+            println!("wrote {} ({} frames)", path.display(), series.len());
+        }
     }
     if let Some(path) = &args.export {
         write_vtu(&sim, path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
