@@ -3,6 +3,7 @@
 
 use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 
+use super::tests::hanging_box;
 use super::*;
 use crate::engine::elastic::{ElasticModel, Formulation};
 use crate::engine::material::Material;
@@ -82,17 +83,6 @@ fn rotated_patch_test_on_a_structured_box() {
 #[test]
 fn rotated_patch_test_on_the_irregular_liver_near_incompressible() {
     rotated_patch_test(&liver_mesh(), 0.49);
-}
-
-fn hanging_box() -> (TetMesh, Imposed) {
-    let mesh = box_mesh([10, 2, 2], [0.1, 0.02, 0.02]);
-    let mut imposed = Imposed::new(mesh.vertex_count());
-    for (i, p) in mesh.positions.iter().enumerate() {
-        if p.x == 0.0 {
-            imposed.set(i as u32, *p);
-        }
-    }
-    (mesh, imposed)
 }
 
 #[test]
