@@ -23,7 +23,8 @@
 //!
 //! `cargo bench -p laparo-tests --bench soak -- --sessions 64 --seconds 600`
 //! (defaults: 64 sessions, 600 s, 32 observers, 10 s warm-up);
-//! `cargo bench -p laparo-tests --bench soak -- --ramp`.
+//! `cargo bench -p laparo-tests --bench soak -- --ramp`; `--unrecorded` runs the same
+//! sessions without recordings, to tell what the recorders hold.
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -50,6 +51,8 @@ struct Args {
     warmup: f64,
     ramp: bool,
     step: usize,
+    /// `--unrecorded`: sessions without recordings, to tell what the recorders hold.
+    unrecorded: bool,
 }
 
 fn args() -> Args {
@@ -60,6 +63,7 @@ fn args() -> Args {
         warmup: 10.0,
         ramp: false,
         step: 8,
+        unrecorded: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -75,6 +79,7 @@ fn args() -> Args {
             "--warmup" => a.warmup = value("--warmup"),
             "--step" => a.step = (value("--step") as usize).max(1),
             "--ramp" => a.ramp = true,
+            "--unrecorded" => a.unrecorded = true,
             // `cargo bench` passes `--bench`; anything else is ignored too.
             _ => {}
         }
@@ -251,8 +256,8 @@ async fn start_server(max_sessions: usize) -> (ServerProcess, String) {
     (server, url)
 }
 
-/// Creates a recorded default session.
-async fn create(url: &str) -> Result<String, tonic::Status> {
+/// Creates a default session, recorded when `record`.
+async fn create(url: &str, record: bool) -> Result<String, tonic::Status> {
     let c = connect(&ConnectConfig::new(url))
         .await
         .map_err(|e| tonic::Status::unavailable(e.to_string()))?;
@@ -260,7 +265,7 @@ async fn create(url: &str) -> Result<String, tonic::Status> {
         .create_session(v1::CreateSessionRequest {
             scene: "default".into(),
             idle_timeout_s: None,
-            record: Some(true),
+            record: Some(record),
         })
         .await?
         .into_inner()
@@ -329,15 +334,27 @@ async fn joined(url: &str, stations: usize, within: Duration) -> bool {
 
 async fn soak(a: &Args) {
     println!(
-        "soak: {} recorded default sessions, 2 stations each at 1 kHz, {} observers, \
+        "soak: {} {} default sessions, 2 stations each at 1 kHz, {} observers, \
          {} s (after {} s warm-up)",
-        a.sessions, a.observers, a.seconds, a.warmup
+        a.sessions,
+        if a.unrecorded {
+            "unrecorded"
+        } else {
+            "recorded"
+        },
+        a.observers,
+        a.seconds,
+        a.warmup
     );
     let (server, url) = start_server(a.sessions).await;
     let pid = server.child.id();
     let mut ids = Vec::new();
     for _ in 0..a.sessions {
-        ids.push(create(&url).await.expect("creates a session"));
+        ids.push(
+            create(&url, !a.unrecorded)
+                .await
+                .expect("creates a session"),
+        );
     }
     let join_time = 2.0 * a.sessions as f64 / JOINS_PER_SECOND;
     let measured_end = Instant::now() + Duration::from_secs_f64(join_time + a.warmup + a.seconds);
@@ -468,7 +485,7 @@ async fn ramp(a: &Args) {
     let mut n = 0;
     'ramp: loop {
         for _ in 0..a.step {
-            let id = match create(&url).await {
+            let id = match create(&url, !a.unrecorded).await {
                 Ok(id) => id,
                 Err(e) => {
                     println!("cannot create session {}: {}", n + 1, e.message());

@@ -34,6 +34,9 @@
 //!
 //! - [`writer`]: the MCAP side — schemas, channels, chunks closed at least once a
 //!   second so that a killed server loses at most the last second.
+//! - [`chunked`]: the MCAP file written in constant memory, however long the
+//!   session records: the chunk index is read back from the file at its finish,
+//!   not held (the mcap crate's writer holds ~300 bytes a chunk until then).
 //! - [`foxglove_scene`]: a tick as a Foxglove `SceneUpdate`, built on the recorder
 //!   thread.
 //! - [`recorder`]: the thread that owns a writer, fed through a bounded channel the
@@ -53,6 +56,7 @@
 //!   compares: zero deviation with the same build, since the engine is
 //!   deterministic.
 
+pub mod chunked;
 pub mod foxglove_scene;
 pub mod list;
 pub mod reader;

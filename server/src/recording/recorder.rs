@@ -12,7 +12,6 @@
 //! (`EVENT_KIND_RECORDER_ERROR`); the session goes on unrecorded.
 
 use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
@@ -415,11 +414,7 @@ fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared)
             return fail(write, &e);
         }
     }
-    let result = sink.finish().and_then(|w: BufWriter<File>| {
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        Ok(())
-    });
+    let result = sink.finish().and_then(|file: File| Ok(file.sync_all()?));
     if let Err(e) = result {
         fail(finish, &e);
     }

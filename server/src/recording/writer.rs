@@ -5,19 +5,18 @@
 //!
 //! Synchronous and single-threaded: [`super::recorder`] runs it on its own thread.
 
-use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufWriter, Seek, Write};
+use std::io::{Read, Seek, Write};
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
 
 use foxglove::Encode;
 use foxglove::schemas::SceneUpdate;
 use laparo_proto::v1;
-use mcap::records::{MessageHeader, Metadata};
-use mcap::{Compression, McapError, McapResult, WriteOptions, Writer};
+use mcap::{McapError, McapResult};
 use prost::Message;
 
+use super::chunked::ChunkedWriter;
 use super::foxglove_scene::{self, SceneUpdates};
 use super::{
     FORMAT_VERSION, METADATA_NAME, SCHEMA_EVENT, SCHEMA_INSTRUMENT, SCHEMA_POSE, SCHEMA_SCENE,
@@ -59,8 +58,8 @@ struct Channels {
 }
 
 /// An MCAP file being written.
-pub struct McapSink<W: Write + Seek> {
-    writer: Writer<W>,
+pub struct McapSink<W: Read + Write + Seek> {
+    writer: ChunkedWriter<W>,
     channels: Channels,
     start_ns: u64,
     sequence: u32,
@@ -75,40 +74,41 @@ pub struct McapSink<W: Write + Seek> {
     pub messages: u64,
 }
 
-impl McapSink<BufWriter<File>> {
+impl McapSink<File> {
     /// Creates `path` (failing if it exists) and writes the session's header; a
     /// file whose header cannot be written (a full disk) is removed (see
     /// [`created`]).
     pub fn create(path: &Path, header: &SessionHeader) -> McapResult<Self> {
-        created(path, |file| McapSink::new(BufWriter::new(file), header))
+        created(path, |file| McapSink::new(file, header))
     }
 }
 
-/// Creates `path` (failing if it exists) and hands it to `start`, which writes
+/// Creates `path` (failing if it exists; readable, for the summary the writer reads
+/// back at its finish) and hands it to `start`, which writes
 /// what makes it a recording; when `start` fails the file is removed, so that a
 /// failed start leaves no empty or headless `.mcap` for listings to trip over.
 pub fn created<T>(path: &Path, start: impl FnOnce(File) -> McapResult<T>) -> McapResult<T> {
-    let file = File::options().write(true).create_new(true).open(path)?;
+    let file = File::options()
+        .read(true)
+        .write(true)
+        .create_new(true)
+        .open(path)?;
     start(file).inspect_err(|_| {
         let _ = std::fs::remove_file(path);
     })
 }
 
-impl<W: Write + Seek> McapSink<W> {
+impl<W: Read + Write + Seek> McapSink<W> {
     /// Starts a recording on `w`: the schemas and channels, the scene on `/scene`
     /// and the `laparo.scene` metadata, then closes the first chunk so that a file
     /// cut short anywhere later still says what it records.
     pub fn new(w: W, header: &SessionHeader) -> McapResult<Self> {
-        let options = WriteOptions::new()
-            .profile("protobuf")
-            .compression(Some(Compression::Zstd))
-            // One recorder thread per session is enough: no compression workers.
-            .compression_threads(0);
-        let mut writer = options.create(w)?;
-        let no_metadata = BTreeMap::new();
-        let channel = |writer: &mut Writer<W>, topic: &str, name: &str| {
+        // Chunks are built whole in memory and written with one call each, so the
+        // file needs no buffering of its own.
+        let mut writer = ChunkedWriter::new(w, "protobuf")?;
+        let channel = |writer: &mut ChunkedWriter<W>, topic: &str, name: &str| {
             let schema = writer.add_schema(name, "protobuf", laparo_proto::FILE_DESCRIPTOR_SET)?;
-            writer.add_channel(schema, topic, "protobuf", &no_metadata)
+            writer.add_channel(schema, topic, "protobuf")
         };
         let channels = Channels {
             scene: channel(&mut writer, TOPIC_SCENE, SCHEMA_SCENE)?,
@@ -127,7 +127,6 @@ impl<W: Write + Seek> McapSink<W> {
                     schema,
                     TOPIC_FOXGLOVE_SCENE,
                     &SceneUpdate::get_message_encoding(),
-                    &no_metadata,
                 )?
             },
         };
@@ -150,22 +149,21 @@ impl<W: Write + Seek> McapSink<W> {
             messages: 0,
         };
         sink.write(channels.scene, start_ns, start_ns, &header.description)?;
-        sink.writer.write_metadata(&Metadata {
-            name: METADATA_NAME.into(),
-            metadata: {
-                let mut m = BTreeMap::from([
-                    ("format_version".into(), FORMAT_VERSION.into()),
-                    ("session_id".into(), header.session_id.clone()),
-                    ("scene".into(), header.scene_name.clone()),
-                    ("start_unix_ns".into(), start_ns.to_string()),
-                    ("scene_toml".into(), header.scene_toml.clone()),
-                ]);
-                if let Some(dir) = &header.scene_dir {
-                    m.insert("scene_dir".into(), dir.display().to_string());
-                }
-                m
-            },
-        })?;
+        let start = start_ns.to_string();
+        let dir = header.scene_dir.as_ref().map(|d| d.display().to_string());
+        let mut pairs = vec![
+            ("format_version", FORMAT_VERSION),
+            ("session_id", header.session_id.as_str()),
+            ("scene", header.scene_name.as_str()),
+            ("start_unix_ns", start.as_str()),
+            ("scene_toml", header.scene_toml.as_str()),
+        ];
+        if let Some(dir) = &dir {
+            pairs.push(("scene_dir", dir.as_str()));
+        }
+        // The format orders a metadata map by key, as a BTreeMap writes it.
+        pairs.sort_by_key(|&(k, _)| k);
+        sink.writer.write_metadata(METADATA_NAME, pairs)?;
         sink.flush()?;
         Ok(sink)
     }
@@ -195,15 +193,8 @@ impl<W: Write + Seek> McapSink<W> {
     ) -> McapResult<()> {
         self.buf.clear();
         encode(&mut self.buf).map_err(|e| McapError::Io(std::io::Error::other(e)))?;
-        self.writer.write_to_known_channel(
-            &MessageHeader {
-                channel_id: channel,
-                sequence: self.sequence,
-                log_time,
-                publish_time,
-            },
-            &self.buf,
-        )?;
+        self.writer
+            .write_message(channel, self.sequence, log_time, publish_time, &self.buf)?;
         self.sequence = self.sequence.wrapping_add(1);
         self.messages += 1;
         self.open_since.get_or_insert_with(Instant::now);
@@ -255,12 +246,11 @@ impl<W: Write + Seek> McapSink<W> {
     /// Closes the open chunk and flushes it to the file.
     pub fn flush(&mut self) -> McapResult<()> {
         self.open_since = None;
-        self.writer.flush()
+        Ok(self.writer.flush()?)
     }
 
     /// Writes the summary and footer and hands back the stream.
-    pub fn finish(mut self) -> McapResult<W> {
-        self.writer.finish()?;
-        Ok(self.writer.into_inner())
+    pub fn finish(self) -> McapResult<W> {
+        Ok(self.writer.finish()?)
     }
 }

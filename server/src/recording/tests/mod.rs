@@ -19,6 +19,7 @@ use crate::engine::simulation::Simulation;
 use crate::frame::description::description;
 use crate::frame::{Frame, Holder, TickOutputs};
 
+mod chunked;
 mod damage;
 mod files;
 mod list;

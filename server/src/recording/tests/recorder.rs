@@ -130,7 +130,7 @@ fn a_full_disk_is_reported_with_its_cause() {
     let script = Script::new();
     let header = script.header(SystemTime::now());
     // The header and scene are written and flushed at once: the disk is full there.
-    let Err(e) = McapSink::new(std::io::BufWriter::new(full), &header) else {
+    let Err(e) = McapSink::new(full, &header) else {
         panic!("writing to /dev/full succeeded");
     };
     let reported = crate::recording::recorder::with_causes(&e);
