@@ -15,12 +15,16 @@ import { Role } from "./gen/laparo/v1/session_pb";
 import { backoff, el, notice, setConnection, sleep } from "./status";
 import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
+import { FrameClock } from "./view/frameclock";
 
 export interface LiveOptions {
   sessionId: string;
   /** Instruments to drive; empty: observe. */
   instruments: string[];
 }
+
+/** Interval between writes of the page's text (status line, gauges, data- attributes), ms. */
+const TEXT_MS = 100;
 
 /** Where the tip starts, m before the liver's centre: outside its surface. */
 const STANDOFF_FRACTION_OF_RADIUS = 1.0;
@@ -207,9 +211,13 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     }
   }
 
-  function frame(): void {
+  const clock = new FrameClock();
+  let shownAt = -Infinity;
+
+  function frame(now: number): void {
     if (signal.aborted) return;
     requestAnimationFrame(frame);
+    clock.begin();
     if (driving && active) {
       gamepad();
       void sendPoses();
@@ -224,10 +232,23 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       gauges.update(s, drivers.has(s.instrument));
     }
     states.clear();
-    if (view.draw() && scene && Number.isNaN(stats.firstFrameMs) && view.drawn > 0) {
+    clock.beginRender();
+    const drew = view.draw();
+    clock.endRender();
+    if (drew && scene && Number.isNaN(stats.firstFrameMs) && view.drawn > 0) {
       stats.firstFrameMs = performance.now();
       page.dataset.firstFrameMs = stats.firstFrameMs.toFixed(0);
     }
+    // The page's text, a few times a second: each write costs a layout.
+    if (now - shownAt >= TEXT_MS) {
+      shownAt = now;
+      showText();
+    }
+    clock.end(page);
+  }
+
+  function showText(): void {
+    gauges.show();
     page.dataset.tick = String(stats.tick);
     page.dataset.frames = String(stats.frames);
     page.dataset.drawn = String(view.drawn);

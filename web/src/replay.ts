@@ -10,6 +10,9 @@ import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
 import { el, notice, setConnection } from "./status";
 
+/** Interval between writes of the page's text (time, gauges, plot), ms. */
+const TEXT_MS = 100;
+
 export function replay(root: HTMLElement, file: string, signal: AbortSignal): void {
   const viewport = el("div", { class: "viewport", id: "viewport" });
   const play = el("button", { id: "play", type: "button" }, "play");
@@ -122,7 +125,9 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     start(at);
   });
 
-  function frame(): void {
+  let shownAt = -Infinity;
+
+  function frame(now: number): void {
     if (signal.aborted) return;
     requestAnimationFrame(frame);
     if (surface) {
@@ -135,6 +140,10 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     }
     states.clear();
     view.draw();
+    // The page's text, a few times a second: each write costs a layout.
+    if (now - shownAt < TEXT_MS) return;
+    shownAt = now;
+    gauges.show();
     if (document.activeElement !== seek) seek.value = String(at);
     time.textContent = `${at.toFixed(2)} / ${duration.toFixed(2)} s`;
     page.dataset.time = at.toFixed(3);

@@ -3,6 +3,7 @@
 // "Must hold", reading the page's state from the DOM (data- attributes, text).
 // Usage: node console.mjs URL INSTRUCTOR_TOKEN OUT_DIR
 import { launch, watch } from "./browser.mjs";
+import { decodePng } from "./png.mjs";
 
 const [url, token, out] = process.argv.slice(2);
 const problems = [];
@@ -18,24 +19,21 @@ async function useToken(page, t) {
   await page.click("#token-form button");
 }
 
-/** Liver-coloured pixels (red well above green and blue) in the centre of the 3D view. */
+/** Liver-coloured pixels (red well above green and blue) in the centre of the 3D
+ * view, read off a screenshot of it (what the page shows: the WebGL canvas
+ * keeps no drawing buffer to read back). */
 async function liverPixels(page) {
-  return page.evaluate(() => {
-    const gl = document.querySelector("#viewport canvas");
-    const c = document.createElement("canvas");
-    c.width = gl.width;
-    c.height = gl.height;
-    const g = c.getContext("2d");
-    g.drawImage(gl, 0, 0);
-    const x0 = Math.floor(c.width * 0.4), y0 = Math.floor(c.height * 0.4);
-    const w = Math.floor(c.width * 0.2), h = Math.floor(c.height * 0.2);
-    const d = g.getImageData(x0, y0, w, h).data;
-    let liver = 0;
-    for (let i = 0; i < d.length; i += 4) {
-      if (d[i] > 60 && d[i] > 1.4 * d[i + 1] && d[i] > 1.4 * d[i + 2]) liver++;
+  const { width, height, data } = decodePng(await page.locator("#viewport canvas").screenshot());
+  const x0 = Math.floor(width * 0.4), y0 = Math.floor(height * 0.4);
+  const w = Math.floor(width * 0.2), h = Math.floor(height * 0.2);
+  let liver = 0;
+  for (let y = y0; y < y0 + h; y++) {
+    for (let x = x0; x < x0 + w; x++) {
+      const i = 4 * (y * width + x);
+      if (data[i] > 60 && data[i] > 1.4 * data[i + 1] && data[i] > 1.4 * data[i + 2]) liver++;
     }
-    return liver / (w * h);
-  });
+  }
+  return liver / (w * h);
 }
 
 const { context, close } = await launch();

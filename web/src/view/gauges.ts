@@ -1,5 +1,7 @@
 // A force gauge per instrument: |F| as a bar (full at GAUGE_FULL_N) and a number,
 // its holder and contact; data-force-n carries the value for the browser tests.
+// `update` keeps the newest state; `show` writes the page (a few times a second:
+// the text and the bar's width each cost a layout).
 import type { InstrumentState } from "../gen/laparo/v1/frame_pb";
 import { ContactState } from "../gen/laparo/v1/frame_pb";
 import { el } from "../status";
@@ -9,7 +11,7 @@ const GAUGE_FULL_N = 5;
 
 export class Gauges {
   readonly root = el("div", { id: "gauges" });
-  private rows = new Map<string, { row: HTMLElement; bar: HTMLElement; text: HTMLElement }>();
+  private rows = new Map<string, { row: HTMLElement; bar: HTMLElement; text: HTMLElement; state: InstrumentState | null; mine: boolean }>();
 
   set(names: string[]): void {
     this.root.replaceChildren();
@@ -19,13 +21,26 @@ export class Gauges {
       const text = el("span", {}, "free");
       const row = el("div", { class: "instrument", "data-instrument": name, "data-force-n": "0" }, el("strong", {}, name), " ", text, el("div", { class: "gauge" }, bar));
       this.root.append(row);
-      this.rows.set(name, { row, bar, text });
+      this.rows.set(name, { row, bar, text, state: null, mine: false });
     }
   }
 
   update(s: InstrumentState, mine: boolean): void {
     const r = this.rows.get(s.instrument);
     if (!r) return;
+    r.state = s;
+    r.mine = mine;
+  }
+
+  /** Writes the newest states to the page. */
+  show(): void {
+    for (const r of this.rows.values()) {
+      if (r.state) this.write(r, r.state, r.mine);
+      r.state = null;
+    }
+  }
+
+  private write(r: { row: HTMLElement; bar: HTMLElement; text: HTMLElement }, s: InstrumentState, mine: boolean): void {
     const f = s.force?.magnitudeN ?? 0;
     r.row.dataset.forceN = f.toFixed(4);
     r.row.dataset.held = s.stationId !== undefined ? String(s.stationId) : "";

@@ -7,6 +7,7 @@ import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import type { SceneDescription } from "../gen/laparo/v1/scene_pb";
 import type { InstrumentState } from "../gen/laparo/v1/frame_pb";
+import { vertexNormals } from "./normals";
 
 /** Liver tissue at rest, and where displacement takes it (at DISPLACEMENT_FULL_M; lighter, still liver-red). */
 const LIVER = new THREE.Color(0x9c3d2c);
@@ -42,11 +43,17 @@ export class SceneView {
   private rest: Float32Array = new Float32Array();
   private first: Float32Array | null = null;
   private instruments = new Map<string, InstrumentView>();
+  private triangles: Uint32Array = new Uint32Array();
   private center = new THREE.Vector3();
   private dirty = true;
+  // Scratch vectors of setInstrument: nothing is allocated per frame.
+  private readonly tip = new THREE.Vector3();
+  private readonly mid = new THREE.Vector3();
+  private readonly dir = new THREE.Vector3();
+  private static readonly UP = new THREE.Vector3(0, 1, 0);
 
   constructor(readonly container: HTMLElement) {
-    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer = new THREE.WebGLRenderer({ antialias: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     this.renderer.setClearColor(0x101418);
     container.append(this.renderer.domElement);
@@ -90,8 +97,11 @@ export class SceneView {
     const colors = new Float32Array(this.rest.length);
     for (let i = 0; i < colors.length; i += 3) LIVER.toArray(colors, i);
     geometry.setAttribute("color", new THREE.BufferAttribute(colors, 3).setUsage(THREE.DynamicDrawUsage));
-    geometry.setIndex(Array.from(surface?.triangles ?? []));
-    geometry.computeVertexNormals();
+    this.triangles = Uint32Array.from(surface?.triangles ?? []);
+    geometry.setIndex(new THREE.BufferAttribute(this.triangles, 1));
+    const normals = new Float32Array(this.rest.length);
+    vertexNormals(this.rest, this.triangles, normals);
+    geometry.setAttribute("normal", new THREE.BufferAttribute(normals, 3).setUsage(THREE.DynamicDrawUsage));
     geometry.computeBoundingSphere();
     this.liver = new THREE.Mesh(
       geometry,
@@ -161,9 +171,11 @@ export class SceneView {
     }
     this.maxDisplacement = max;
     this.maxChange = Math.sqrt(change);
+    const normal = geometry.getAttribute("normal") as THREE.BufferAttribute;
+    vertexNormals(p, this.triangles, normal.array as Float32Array);
     pos.needsUpdate = true;
     col.needsUpdate = true;
-    geometry.computeVertexNormals();
+    normal.needsUpdate = true;
     this.dirty = true;
   }
 
@@ -178,21 +190,21 @@ export class SceneView {
       this.dirty = true;
       return;
     }
-    const a = new THREE.Vector3(tip.x, tip.y, tip.z);
+    const a = this.tip.set(tip.x, tip.y, tip.z);
     // From the tip to the trocar, as the instrument passes through it.
     const end = v.trocarAt;
-    const mid = a.clone().add(end).multiplyScalar(0.5);
-    const dir = end.clone().sub(a);
+    const mid = this.mid.copy(a).add(end).multiplyScalar(0.5);
+    const dir = this.dir.copy(end).sub(a);
     const len = dir.length();
     v.shaft.position.copy(mid);
     v.shaft.scale.set(1, Math.max(len, 1e-4), 1);
-    v.shaft.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), dir.normalize());
+    v.shaft.quaternion.setFromUnitVectors(SceneView.UP, dir.normalize());
     v.shaft.visible = true;
     const f = s.force?.force;
     const magnitude = s.force?.magnitudeN ?? 0;
     if (f && magnitude > 1e-6) {
       v.arrow.position.copy(a);
-      v.arrow.setDirection(new THREE.Vector3(f.x, f.y, f.z).normalize());
+      v.arrow.setDirection(this.dir.set(f.x, f.y, f.z).normalize());
       const l = Math.max(0.004, magnitude * ARROW_M_PER_N);
       v.arrow.setLength(l, Math.min(0.008, 0.4 * l), Math.min(0.005, 0.25 * l));
       v.arrow.visible = true;
