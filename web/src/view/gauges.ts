@@ -1,6 +1,7 @@
 // A force gauge per instrument: |F| as a bar (full at GAUGE_FULL_N) and a number,
 // its holder and contact; data-force-n carries the value for the browser tests.
-// `update` keeps the newest state; `show` writes the page (a few times a second:
+// data-held-count is the state's held_vertex_count, data-held-drawn the held
+// vertices the 3D view draws. `update` keeps the newest state; `show` writes the page (a few times a second:
 // the text and the bar's width each cost a layout).
 import type { InstrumentState } from "../gen/laparo/v1/frame_pb";
 import { ContactState } from "../gen/laparo/v1/frame_pb";
@@ -32,11 +33,13 @@ export class Gauges {
     r.mine = mine;
   }
 
-  /** Writes the newest states to the page. */
-  show(): void {
-    for (const r of this.rows.values()) {
+  /** Writes the newest states to the page, with the held vertices the view
+   * draws for each instrument (data-held-drawn, beside data-held-count). */
+  show(heldDrawn: (instrument: string) => number): void {
+    for (const [name, r] of this.rows) {
       if (r.state) this.write(r, r.state, r.mine);
       r.state = null;
+      r.row.dataset.heldDrawn = String(heldDrawn(name));
     }
   }
 
@@ -44,6 +47,7 @@ export class Gauges {
     const f = s.force?.magnitudeN ?? 0;
     r.row.dataset.forceN = f.toFixed(4);
     r.row.dataset.held = s.stationId !== undefined ? String(s.stationId) : "";
+    r.row.dataset.heldCount = String(s.heldVertexCount);
     r.row.dataset.tip = s.pose?.tip ? `${s.pose.tip.x.toFixed(4)},${s.pose.tip.y.toFixed(4)},${s.pose.tip.z.toFixed(4)}` : "";
     r.bar.style.width = `${Math.min(100, (100 * f) / GAUGE_FULL_N)}%`;
     const holder = s.stationId !== undefined ? `station ${s.stationId}${mine ? " (you)" : ""}` : "free";

@@ -1,7 +1,8 @@
 // The 3D view: the liver as it streams (smooth shading, normals recomputed each
 // frame, coloured by displacement from rest), the instruments as cylinders from
-// the tip to the trocar, the trocars, a force arrow per instrument (10 mm per N,
-// as in the recordings' Foxglove scene), an orbit camera and a laparoscope
+// the tip to the trocar, the trocars, the vertices each instrument holds as
+// cyan points, a force arrow per instrument (10 mm per N, as in the recordings'
+// Foxglove scene), an orbit camera and a laparoscope
 // camera looking from a camera port between the trocars.
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
@@ -14,6 +15,9 @@ const LIVER = new THREE.Color(0x9c3d2c);
 const DISPLACED = new THREE.Color(0xe07a50);
 /** Displacement drawn in the full highlight colour, m: the sag under gravity plus a firm press. */
 const DISPLACEMENT_FULL_M = 0.02;
+/** Held vertices: drawn as cyan points of this many pixels, over the surface. */
+const HELD = new THREE.Color(0x33e0ff);
+const HELD_POINT_PX = 7;
 /** Force arrows: 10 mm per newton. */
 const ARROW_M_PER_N = 0.01;
 
@@ -22,6 +26,11 @@ interface InstrumentView {
   trocar: THREE.Mesh;
   arrow: THREE.ArrowHelper;
   trocarAt: THREE.Vector3;
+  /** The held vertices (surface vertex numbers; room for the whole surface). */
+  held: Uint32Array;
+  heldCount: number;
+  /** Their points, placed on the surface as drawn. */
+  heldPoints: THREE.Points;
 }
 
 export class SceneView {
@@ -86,7 +95,10 @@ export class SceneView {
       this.scene.remove(this.liver);
       this.liver.geometry.dispose();
     }
-    for (const v of this.instruments.values()) this.scene.remove(v.shaft, v.trocar, v.arrow);
+    for (const v of this.instruments.values()) {
+      this.scene.remove(v.shaft, v.trocar, v.arrow, v.heldPoints);
+      v.heldPoints.geometry.dispose();
+    }
     this.instruments.clear();
     const surface = desc.restSurface;
     this.rest = Float32Array.from(surface?.positions ?? []);
@@ -131,8 +143,18 @@ export class SceneView {
       trocar.lookAt(this.center);
       const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), at, 0.01, 0x33ff66, 0.008, 0.005);
       arrow.visible = false;
-      this.scene.add(shaft, trocar, arrow);
-      this.instruments.set(d.name, { shaft, trocar, arrow, trocarAt: at });
+      const vertices = this.rest.length / 3;
+      const heldGeometry = new THREE.BufferGeometry();
+      heldGeometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(3 * vertices), 3).setUsage(THREE.DynamicDrawUsage));
+      heldGeometry.setDrawRange(0, 0);
+      const heldPoints = new THREE.Points(
+        heldGeometry,
+        new THREE.PointsMaterial({ color: HELD, size: HELD_POINT_PX, sizeAttenuation: false, depthTest: false }),
+      );
+      heldPoints.frustumCulled = false;
+      heldPoints.renderOrder = 1;
+      this.scene.add(shaft, trocar, arrow, heldPoints);
+      this.instruments.set(d.name, { shaft, trocar, arrow, trocarAt: at, held: new Uint32Array(vertices), heldCount: 0, heldPoints });
     }
     // The laparoscope's port: between the trocars, a little above, looking at the liver.
     const port = trocars.length
@@ -183,6 +205,12 @@ export class SceneView {
   setInstrument(s: InstrumentState): void {
     const v = this.instruments.get(s.instrument);
     if (!v) return;
+    // Vertex numbers beyond the surface (a scene that changed under the view) are left out.
+    let count = 0;
+    for (const i of s.heldSurfaceVertices) {
+      if (i < v.held.length && count < v.held.length) v.held[count++] = i;
+    }
+    v.heldCount = count;
     const tip = s.pose?.tip;
     if (!tip) {
       v.shaft.visible = false;
@@ -218,9 +246,37 @@ export class SceneView {
   draw(): boolean {
     if (!this.dirty) return false;
     this.dirty = false;
+    this.placeHeld();
     this.renderer.render(this.scene, this.useScope ? this.scope : this.orbit);
     this.drawn++;
     return true;
+  }
+
+  /** Held vertices drawn, per instrument (for the browser tests). */
+  heldDrawn(instrument: string): number {
+    return this.instruments.get(instrument)?.heldPoints.geometry.drawRange.count ?? 0;
+  }
+
+  /** Puts each instrument's held points where the surface as drawn has those vertices. */
+  private placeHeld(): void {
+    if (!this.liver) return;
+    const p = (this.liver.geometry.getAttribute("position") as THREE.BufferAttribute).array as Float32Array;
+    for (const v of this.instruments.values()) {
+      const attr = v.heldPoints.geometry.getAttribute("position") as THREE.BufferAttribute;
+      const out = attr.array as Float32Array;
+      for (let k = 0; k < v.heldCount; k++) {
+        const i = 3 * v.held[k];
+        out[3 * k] = p[i];
+        out[3 * k + 1] = p[i + 1];
+        out[3 * k + 2] = p[i + 2];
+      }
+      v.heldPoints.geometry.setDrawRange(0, v.heldCount);
+      if (v.heldCount > 0) {
+        attr.clearUpdateRanges();
+        attr.addUpdateRange(0, 3 * v.heldCount);
+        attr.needsUpdate = true;
+      }
+    }
   }
 
   redraw(): void {
