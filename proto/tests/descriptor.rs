@@ -358,6 +358,7 @@ fn instrument_state() -> InstrumentState {
         pose_sequence: Some(1234),
         contact: ContactState::TipAndShaft.into(),
         held_vertex_count: 5,
+        held_surface_vertices: vec![7, 3, 120, 121, 9],
         local_model: Some(LocalModel {
             tick: 42,
             sim_time_s: 0.7,

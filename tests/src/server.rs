@@ -24,7 +24,13 @@ pub struct TestServer {
 
 impl TestServer {
     pub async fn start(config: ServeConfig) -> Self {
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        Self::start_at("127.0.0.1:0".parse().unwrap(), config).await
+    }
+
+    /// A server on `addr` (port 0: a free one), as a restarted server comes back
+    /// on the port it had.
+    pub async fn start_at(addr: SocketAddr, config: ServeConfig) -> Self {
+        let listener = tokio::net::TcpListener::bind(addr).await.unwrap();
         let addr = listener.local_addr().unwrap();
         let (stop, stopped) = oneshot::channel::<()>();
         let task = tokio::spawn(serve(config, listener, async {

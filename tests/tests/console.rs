@@ -4,7 +4,12 @@
 //! into the liver (the surface moves, the force gauge reads above zero); a second
 //! browser context observing sees the same instrument; the liver drawn
 //! (liver-coloured pixels where it is); the session's close said on the
-//! observer's page; a replay played to its end; a wrong token refused on the page.
+//! observer's page; the held vertices drawn, live and in a replay; a replay
+//! paused (its time stands still), sought (it lands at the time asked) and
+//! played to its end; a wrong token refused on the page; the server stopped
+//! and started again on its port (the page says so and comes back by itself);
+//! a gamepad driving an instrument and its vibration growing with the force;
+//! the console over TLS (a self-signed certificate made here).
 //! The script fails on any uncaught exception or console error of a page.
 //!
 //! Needs node, chromium and `web/node_modules` (`.ci/run` installs them). Without
@@ -14,11 +19,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use laparo_server::service::{Caller, Role, ServeConfig, Tokens};
+use laparo_server::service::{Caller, Role, ServeConfig, TlsFiles, Tokens};
 use laparo_tests::server::TestServer;
 
 const TOKEN: &str = "console-instructor-token";
-/// The whole browser run: about 50 s on a 2-core machine.
+/// The whole browser run: about 60 s on a 2-core machine.
 const RUN_LIMIT: Duration = Duration::from_secs(240);
 
 fn chromium() -> PathBuf {
@@ -69,51 +74,71 @@ async fn the_console_works_in_a_real_browser() {
     );
     let recordings = tempfile::tempdir().unwrap();
     let out = tempfile::tempdir().unwrap();
-    let server = TestServer::start(ServeConfig {
-        tokens: Some(tokens),
+    let config = ServeConfig {
+        tokens: Some(tokens.clone()),
         recordings: Some(recordings.path().to_path_buf()),
         ..ServeConfig::default()
+    };
+    let mut server = Some(TestServer::start(config.clone()).await);
+    let addr = server.as_ref().unwrap().addr;
+    // The same server over TLS, with a self-signed certificate made here.
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    std::fs::write(out.path().join("cert.pem"), cert.cert.pem()).unwrap();
+    std::fs::write(out.path().join("key.pem"), cert.signing_key.serialize_pem()).unwrap();
+    let tls = TestServer::start(ServeConfig {
+        tls: Some(TlsFiles {
+            cert: out.path().join("cert.pem"),
+            key: out.path().join("key.pem"),
+        }),
+        recordings: None,
+        ..config.clone()
     })
     .await;
-    let url = format!("http://{}/", server.addr);
     let out_dir = out.path().to_path_buf();
-    let script = web.join("tests/console.mjs");
-    let (status, log) = tokio::task::spawn_blocking(move || {
-        let log_path = out_dir.join("browser.log");
-        let log = std::fs::File::create(&log_path).unwrap();
-        let mut child = Command::new("node")
-            .arg(&script)
-            .arg(&url)
-            .arg(TOKEN)
-            .arg(&out_dir)
-            .stdin(Stdio::null())
-            .stdout(log.try_clone().unwrap())
-            .stderr(log)
-            .spawn()
-            .expect("node starts");
-        let start = Instant::now();
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break Some(s);
-            }
-            if start.elapsed() > RUN_LIMIT {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        };
-        (
-            status,
-            std::fs::read_to_string(&log_path).unwrap_or_default(),
-        )
-    })
-    .await
-    .unwrap();
+    let log_path = out_dir.join("browser.log");
+    let log = std::fs::File::create(&log_path).unwrap();
+    let mut child = Command::new("node")
+        .arg(web.join("tests/console.mjs"))
+        .arg(format!("http://{addr}/"))
+        .arg(TOKEN)
+        .arg(&out_dir)
+        .arg(format!("https://localhost:{}/", tls.addr.port()))
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .spawn()
+        .expect("node starts");
+    // The script asks for the server to be stopped (a file `stop` in OUT_DIR;
+    // answered with `stopped`) and started again on its port (`start`, answered
+    // with `started`), to see the page lose and regain it.
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > RUN_LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        if out_dir.join("stop").exists() && !out_dir.join("stopped").exists() {
+            server.take().unwrap().shutdown().await.unwrap();
+            std::fs::write(out_dir.join("stopped"), "").unwrap();
+        }
+        if out_dir.join("start").exists() && !out_dir.join("started").exists() {
+            server = Some(TestServer::start_at(addr, config.clone()).await);
+            std::fs::write(out_dir.join("started"), "").unwrap();
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
     println!("{log}");
     let status =
         status.unwrap_or_else(|| panic!("the browser run took over {RUN_LIMIT:?}:\n{log}"));
     assert!(status.success(), "the browser tests failed:\n{log}");
     assert!(log.contains("browser tests passed"), "{log}");
-    server.shutdown().await.unwrap();
+    if let Some(server) = server {
+        server.shutdown().await.unwrap();
+    }
+    tls.shutdown().await.unwrap();
 }

@@ -62,11 +62,14 @@ export class Driver {
 
   /** The axis Z (tip toward handle) and the tip P. */
   pose(): { tip: Vec; axis: Vec } {
-    const cp = Math.cos(this.pitch);
-    const axis = unit(
-      add(add(scale(this.z0, cp * Math.cos(this.yaw)), scale(this.u, cp * Math.sin(this.yaw))), scale(this.v, Math.sin(this.pitch))),
-    );
-    return { tip: sub(this.trocar, scale(axis, this.depth)), axis };
+    return this.poseAt(this.yaw, this.pitch, this.depth);
+  }
+
+  /** The axis and tip at pivot (yaw, pitch) and insertion depth, m. */
+  poseAt(yaw: number, pitch: number, depth: number): { tip: Vec; axis: Vec } {
+    const cp = Math.cos(pitch);
+    const axis = unit(add(add(scale(this.z0, cp * Math.cos(yaw)), scale(this.u, cp * Math.sin(yaw))), scale(this.v, Math.sin(pitch))));
+    return { tip: sub(this.trocar, scale(axis, depth)), axis };
   }
 }
 

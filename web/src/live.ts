@@ -1,11 +1,13 @@
 // The live view of a session: observing (Observe.Observe) or driving instruments
-// (Station.Attach + Station.SendPoses, gRPC-web's form of Station.Join). The
+// (Station.Attach + Station.SendPoses, gRPC-web's form of Station.Join; the poses
+// sampled at the station's pose rate and sent in batches, see sampler.ts). The
 // stream is read into "newest" slots and drawn once per animation frame, so a
 // fast stream never queues draws; a lost connection is said and retried with
 // backoff; a wrong token, a closed or unknown session end the view with a notice.
 import { create } from "@bufbuild/protobuf";
 import { Code, failure, observe, station } from "./api";
 import { Driver, M_PER_WHEEL, RAD_PER_PIXEL, stick } from "./drive";
+import { PoseSampler } from "./sampler";
 import { DevicePoseSchema } from "./gen/laparo/v1/station_pb";
 import { EventKind } from "./gen/laparo/v1/event_pb";
 import type { Event } from "./gen/laparo/v1/event_pb";
@@ -15,12 +17,16 @@ import { Role } from "./gen/laparo/v1/session_pb";
 import { backoff, el, notice, setConnection, sleep } from "./status";
 import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
+import { FrameClock } from "./view/frameclock";
 
 export interface LiveOptions {
   sessionId: string;
   /** Instruments to drive; empty: observe. */
   instruments: string[];
 }
+
+/** Interval between writes of the page's text (status line, gauges, data- attributes), ms. */
+const TEXT_MS = 100;
 
 /** Where the tip starts, m before the liver's centre: outside its surface. */
 const STANDOFF_FRACTION_OF_RADIUS = 1.0;
@@ -56,6 +62,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   // Newest of each, set by the stream, used by the frame loop.
   let surface: SurfaceFrame | null = null;
   const states = new Map<string, InstrumentState>();
+  /** Newest |F| of each instrument, N (for the gamepad's vibration). */
+  const forceN = new Map<string, number>();
   let scene: SceneDescription | null = null;
   const drivers = new Map<string, Driver>();
   let handle = "";
@@ -109,6 +117,7 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
 
   function onState(s: InstrumentState): void {
     states.set(s.instrument, s);
+    forceN.set(s.instrument, s.force?.magnitudeN ?? 0);
     const sent = sentAt.get(s.instrument);
     if (sent && s.poseSequence !== undefined && s.poseSequence >= sent.seq) {
       stats.latencyMs = performance.now() - sent.t;
@@ -125,19 +134,28 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
 
   let closed: string | null = null;
 
+  const sampler = new PoseSampler();
+  const sendStats = { calls: 0, poses: 0, lastBatch: 0, spacingMs: NaN };
+
+  /** Sends the waiting poses, a batch per call, one call at a time. */
   async function sendPoses(): Promise<void> {
-    if (!handle || sending || drivers.size === 0) return;
+    if (!handle || sending || sampler.pending.length === 0) return;
     sending = true;
     try {
-      const poses = [];
-      const t = performance.now();
-      for (const [name, d] of drivers) {
-        sequence++;
-        const p = d.pose();
-        poses.push(create(DevicePoseSchema, { instrument: name, pose: { tip: p.tip, axis: p.axis }, deviceTimeS: t / 1000, sequence }));
-        if (!sentAt.has(name)) sentAt.set(name, { seq: sequence, t });
+      while (sampler.pending.length > 0 && handle && !signal.aborted) {
+        const batch = sampler.batch();
+        const poses = batch.map((p) => {
+          sequence++;
+          if (!sentAt.has(p.instrument)) sentAt.set(p.instrument, { seq: sequence, t: p.t });
+          return create(DevicePoseSchema, { instrument: p.instrument, pose: { tip: p.tip, axis: p.axis }, deviceTimeS: p.t / 1000, sequence });
+        });
+        await station.sendPoses({ handle, poses }, { signal });
+        sendStats.calls++;
+        sendStats.poses += poses.length;
+        sendStats.lastBatch = poses.length;
+        const per = drivers.size;
+        if (batch.length > per) sendStats.spacingMs = (batch[batch.length - 1].t - batch[0].t) / (batch.length / per - 1);
       }
-      await station.sendPoses({ handle, poses }, { signal });
     } catch (e) {
       const f = failure(e);
       if (f.code !== undefined && !signal.aborted) notice(`poses not sent: ${f.text}`);
@@ -200,18 +218,23 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     if (pad.buttons[5]?.pressed) r.roll += 0.05;
     // Vibration growing with the force, where the pad has an actuator.
     let force = 0;
-    for (const name of drivers.keys()) force = Math.max(force, states.get(name)?.force?.magnitudeN ?? 0);
+    for (const name of drivers.keys()) force = Math.max(force, forceN.get(name) ?? 0);
     const actuator = (pad as Gamepad & { vibrationActuator?: { playEffect?: (t: string, p: object) => Promise<unknown> } }).vibrationActuator;
     if (force > 0.05 && actuator?.playEffect) {
       actuator.playEffect("dual-rumble", { duration: 50, strongMagnitude: Math.min(1, force / 5), weakMagnitude: Math.min(1, force / 2) }).catch(() => {});
     }
   }
 
-  function frame(): void {
+  const clock = new FrameClock();
+  let shownAt = -Infinity;
+
+  function frame(now: number): void {
     if (signal.aborted) return;
     requestAnimationFrame(frame);
+    clock.begin();
     if (driving && active) {
       gamepad();
+      sampler.take(performance.now(), drivers);
       void sendPoses();
     }
     if (surface) {
@@ -224,15 +247,34 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       gauges.update(s, drivers.has(s.instrument));
     }
     states.clear();
-    if (view.draw() && scene && Number.isNaN(stats.firstFrameMs) && view.drawn > 0) {
+    clock.beginRender();
+    const drew = view.draw();
+    clock.endRender();
+    if (drew && scene && Number.isNaN(stats.firstFrameMs) && view.drawn > 0) {
       stats.firstFrameMs = performance.now();
       page.dataset.firstFrameMs = stats.firstFrameMs.toFixed(0);
     }
+    // The page's text, a few times a second: each write costs a layout.
+    if (now - shownAt >= TEXT_MS) {
+      shownAt = now;
+      showText();
+    }
+    clock.end(page);
+  }
+
+  function showText(): void {
+    gauges.show((name) => view.heldDrawn(name));
     page.dataset.tick = String(stats.tick);
     page.dataset.frames = String(stats.frames);
     page.dataset.drawn = String(view.drawn);
     page.dataset.maxDisplacementMm = (view.maxDisplacement * 1000).toFixed(3);
     page.dataset.surfaceChangeMm = (view.maxChange * 1000).toFixed(3);
+    if (driving) {
+      page.dataset.poseCalls = String(sendStats.calls);
+      page.dataset.posesSent = String(sendStats.poses);
+      page.dataset.poseSpacingMs = sendStats.spacingMs.toFixed(3);
+      page.dataset.posesDropped = String(sampler.dropped);
+    }
     const roll = [...drivers.entries()].map(([n, d]) => `${n} roll ${((d.roll * 180) / Math.PI).toFixed(0)}°`).join(" ");
     hud.textContent =
       `tick ${stats.tick} · mechanics ${stats.rate.toFixed(1)} Hz · latency ${Number.isNaN(stats.latencyMs) ? "–" : stats.latencyMs.toFixed(0) + " ms"}` +
@@ -259,6 +301,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
             switch (k.case) {
               case "joined":
                 if (k.value.scene) onScene(k.value.scene, k.value.surfaceFrameRateHz);
+                // Poses sampled for a station that is gone are not sent to the new one.
+                sampler.pending.length = 0;
                 active = true;
                 attempt = 0;
                 notice(null);

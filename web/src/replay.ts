@@ -10,6 +10,9 @@ import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
 import { el, notice, setConnection } from "./status";
 
+/** Interval between writes of the page's text (time, gauges, plot), ms. */
+const TEXT_MS = 100;
+
 export function replay(root: HTMLElement, file: string, signal: AbortSignal): void {
   const viewport = el("div", { class: "viewport", id: "viewport" });
   const play = el("button", { id: "play", type: "button" }, "play");
@@ -62,6 +65,8 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     stream = mine;
     signal.addEventListener("abort", () => mine.abort());
     page.dataset.state = "playing";
+    // The time of the stream's first frame: where a seek landed.
+    page.dataset.startedAt = "";
     setConnection("connecting");
     void (async () => {
       try {
@@ -84,6 +89,7 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
           } else if (k.case === "surfaceFrame") {
             surface = k.value;
             at = k.value.simTimeS;
+            if (!page.dataset.startedAt) page.dataset.startedAt = at.toFixed(4);
           } else if (k.case === "instrumentState") {
             states.set(k.value.instrument, k.value);
             plot.add(k.value.instrument, k.value.simTimeS, k.value.force?.magnitudeN ?? 0);
@@ -122,7 +128,9 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     start(at);
   });
 
-  function frame(): void {
+  let shownAt = -Infinity;
+
+  function frame(now: number): void {
     if (signal.aborted) return;
     requestAnimationFrame(frame);
     if (surface) {
@@ -135,6 +143,10 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     }
     states.clear();
     view.draw();
+    // The page's text, a few times a second: each write costs a layout.
+    if (now - shownAt < TEXT_MS) return;
+    shownAt = now;
+    gauges.show((name) => view.heldDrawn(name));
     if (document.activeElement !== seek) seek.value = String(at);
     time.textContent = `${at.toFixed(2)} / ${duration.toFixed(2)} s`;
     page.dataset.time = at.toFixed(3);

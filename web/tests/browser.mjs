@@ -8,7 +8,8 @@ import { chromium } from "playwright-core";
 
 export const CHROMIUM = process.env.LAPARO_CHROMIUM || "/usr/bin/chromium";
 
-export async function launch() {
+/** A browser of its own (a fresh profile); `args`: more command-line switches. */
+export async function launch(args = []) {
   const profile = mkdtempSync(join(tmpdir(), "laparo-chromium-"));
   const context = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM,
@@ -25,6 +26,7 @@ export async function launch() {
       "--disable-sync",
       "--enable-unsafe-swiftshader",
       "--use-angle=swiftshader",
+      ...args,
     ],
   });
   const close = async () => {

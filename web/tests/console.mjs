@@ -1,13 +1,30 @@
 // The console's browser tests (run by tests/tests/console.rs against a real
 // laparo-server with tokens): each step asserts one property of issue 12's
 // "Must hold", reading the page's state from the DOM (data- attributes, text).
-// Usage: node console.mjs URL INSTRUCTOR_TOKEN OUT_DIR
+// Usage: node console.mjs URL INSTRUCTOR_TOKEN OUT_DIR [TLS_URL]
+// The server at URL is stopped and started again on request: the script writes
+// OUT_DIR/stop and waits for OUT_DIR/stopped, then OUT_DIR/start and waits for
+// OUT_DIR/started (tests/tests/console.rs answers).
+import { existsSync, writeFileSync } from "node:fs";
 import { launch, watch } from "./browser.mjs";
+import { decodePng } from "./png.mjs";
 
-const [url, token, out] = process.argv.slice(2);
+const [url, token, out, tlsUrl] = process.argv.slice(2);
 const problems = [];
 const T = 30_000;
 let step = "start";
+
+/** Asks the test for `what` (a file in OUT_DIR) and waits for its answer. */
+async function ask(what, answer) {
+  writeFileSync(`${out}/${what}`, "");
+  for (const t0 = Date.now(); !existsSync(`${out}/${answer}`); ) {
+    if (Date.now() - t0 > T) throw new Error(`${step}: no ${answer} after ${what}`);
+    await new Promise((r) => setTimeout(r, 100));
+  }
+}
+
+const liveState = (page, state) =>
+  page.waitForFunction((s) => document.querySelector("#connection")?.dataset.state === s, state, { timeout: T });
 
 function check(cond, what) {
   if (!cond) throw new Error(`${step}: ${what}`);
@@ -18,24 +35,34 @@ async function useToken(page, t) {
   await page.click("#token-form button");
 }
 
-/** Liver-coloured pixels (red well above green and blue) in the centre of the 3D view. */
-async function liverPixels(page) {
-  return page.evaluate(() => {
-    const gl = document.querySelector("#viewport canvas");
-    const c = document.createElement("canvas");
-    c.width = gl.width;
-    c.height = gl.height;
-    const g = c.getContext("2d");
-    g.drawImage(gl, 0, 0);
-    const x0 = Math.floor(c.width * 0.4), y0 = Math.floor(c.height * 0.4);
-    const w = Math.floor(c.width * 0.2), h = Math.floor(c.height * 0.2);
-    const d = g.getImageData(x0, y0, w, h).data;
-    let liver = 0;
-    for (let i = 0; i < d.length; i += 4) {
-      if (d[i] > 60 && d[i] > 1.4 * d[i + 1] && d[i] > 1.4 * d[i + 2]) liver++;
+/** Counts the pixels of a screenshot of the 3D view for which `test(r, g, b)`
+ * holds, within the fraction `box` [x0, y0, w, h] of it (all by default). */
+async function countPixels(page, test, box = [0, 0, 1, 1]) {
+  const { width, height, data } = decodePng(await page.locator("#viewport canvas").screenshot());
+  const [x0, y0] = [Math.floor(width * box[0]), Math.floor(height * box[1])];
+  const [w, h] = [Math.floor(width * box[2]), Math.floor(height * box[3])];
+  let n = 0;
+  for (let y = y0; y < y0 + h; y++) {
+    for (let x = x0; x < x0 + w; x++) {
+      const i = 4 * (y * width + x);
+      if (test(data[i], data[i + 1], data[i + 2])) n++;
     }
-    return liver / (w * h);
-  });
+  }
+  return { n, of: w * h };
+}
+
+/** Pixels of the held vertices' cyan (green and blue high, red low: no liver,
+ * instrument, trocar, arrow or background colour is). */
+async function heldPixels(page) {
+  return (await countPixels(page, (r, g, b) => g > 170 && b > 170 && r < 130)).n;
+}
+
+/** Liver-coloured pixels (red well above green and blue) in the centre of the 3D
+ * view, read off a screenshot of it (what the page shows: the WebGL canvas
+ * keeps no drawing buffer to read back). */
+async function liverPixels(page) {
+  const { n, of } = await countPixels(page, (r, g, b) => r > 60 && r > 1.4 * g && r > 1.4 * b, [0.4, 0.4, 0.2, 0.2]);
+  return n / of;
 }
 
 const { context, close } = await launch();
@@ -83,6 +110,22 @@ try {
   const moved = await driver.$eval("#live", (e) => Number(e.dataset.surfaceChangeMm));
   console.log(`ok surface moved ${moved.toFixed(2)} mm, force ${force.toFixed(3)} N`);
 
+  // The held vertices arrive and are drawn: as many points as the state's held
+  // count, cyan on the screen.
+  step = "held vertices";
+  await driver.waitForFunction(
+    () => {
+      const row = document.querySelector('#gauges [data-instrument="left"]');
+      return Number(row?.dataset.heldCount) > 0 && row.dataset.heldDrawn === row.dataset.heldCount;
+    },
+    null,
+    { timeout: T },
+  );
+  const held = await driver.$eval('#gauges [data-instrument="left"]', (e) => Number(e.dataset.heldDrawn));
+  const cyan = await heldPixels(driver);
+  check(cyan > 0, `no cyan pixels for the ${held} held vertices`);
+  console.log(`ok ${held} held vertices drawn (${cyan} cyan pixels)`);
+
   // The liver is drawn: liver-coloured pixels where the liver is.
   step = "screenshot";
   const fraction = await liverPixels(driver);
@@ -128,6 +171,38 @@ try {
   const file = await row.evaluate((e) => e.closest("tr").dataset.recording);
   await driver.goto(`${url}#/replay/${encodeURIComponent(file)}`);
   await driver.waitForFunction(() => Number(document.querySelector("#replay")?.dataset.drawn) > 0, null, { timeout: T });
+  // The recording's held vertices are drawn in the replay as live.
+  step = "replay: held vertices";
+  await driver.waitForFunction(() => Number(document.querySelector('#gauges [data-instrument="left"]')?.dataset.heldDrawn) > 0, null, {
+    timeout: T,
+  });
+  console.log(`ok replay draws ${await driver.$eval('#gauges [data-instrument="left"]', (e) => e.dataset.heldDrawn)} held vertices`);
+  // Paused, the replay's time stands still.
+  step = "replay: pause";
+  await driver.click("#pause");
+  await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "paused", null, { timeout: T });
+  await driver.waitForTimeout(300);
+  const paused = await driver.$eval("#replay", (e) => e.dataset.time);
+  await driver.waitForTimeout(1000);
+  const still = await driver.$eval("#replay", (e) => e.dataset.time);
+  check(paused === still, `paused at ${paused} s, then at ${still} s`);
+  console.log(`ok replay paused at ${paused} s stays there`);
+  // Sought, it lands at the time asked (within a frame of the recording).
+  step = "replay: seek";
+  const target = await driver.$eval("#seek", (e) => Math.round(Number(e.max) * 50) / 100);
+  await driver.$eval(
+    "#seek",
+    (e, t) => {
+      e.value = String(t);
+      e.dispatchEvent(new Event("change"));
+    },
+    target,
+  );
+  await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.startedAt, null, { timeout: T });
+  const landed = await driver.$eval("#replay", (e) => Number(e.dataset.startedAt));
+  check(Math.abs(landed - target) <= 1 / 30, `sought ${target} s, landed at ${landed} s`);
+  console.log(`ok replay sought ${target} s, landed at ${landed} s`);
+  step = "replay: to the end";
   await driver.selectOption("#speed", "10");
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "ended", null, { timeout: 60_000 });
   await driver.screenshot({ path: `${out}/replay.png` });
@@ -145,6 +220,99 @@ try {
   const said = await stranger.$eval("#notice", (e) => e.textContent);
   check(/token/.test(said), `the page says "${said}"`);
   console.log(`ok wrong token refused: ${said}`);
+
+  // A gamepad drives an instrument: the left stick pivots it, the left trigger
+  // inserts it; its vibration grows with the force.
+  step = "gamepad";
+  await driver.goto(`${url}#/`);
+  await driver.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+  await driver.click("#create");
+  await driver.waitForSelector('#live[data-mode="drive"]', { timeout: T });
+  const padSession = await driver.$eval("#live", (e) => e.dataset.session);
+  const pad = await context.newPage();
+  watch(pad, "gamepad", problems);
+  await pad.addInitScript(() => {
+    const button = (i) => ({ get pressed() { return window.__pad.buttons[i] > 0; }, get value() { return window.__pad.buttons[i]; }, touched: false });
+    window.__pad = { axes: [0, 0, 0, 0], buttons: new Array(16).fill(0), rumble: [] };
+    const gamepad = {
+      id: "fake pad",
+      index: 0,
+      connected: true,
+      mapping: "standard",
+      timestamp: 0,
+      get axes() { return window.__pad.axes; },
+      buttons: Array.from({ length: 16 }, (_, i) => button(i)),
+      vibrationActuator: {
+        type: "dual-rumble",
+        playEffect: (type, p) => {
+          window.__pad.rumble.push(p.strongMagnitude);
+          return Promise.resolve("complete");
+        },
+      },
+    };
+    navigator.getGamepads = () => [gamepad, null, null, null];
+  });
+  await pad.goto(`${url}#/`);
+  await useToken(pad, token);
+  await pad.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=right`);
+  await liveState(pad, "live");
+  const tipOf = () => pad.$eval('#gauges [data-instrument="right"]', (e) => e.dataset.tip);
+  await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="right"]')?.dataset.tip, null, { timeout: T });
+  const before = await tipOf();
+  await pad.evaluate(() => (window.__pad.axes[0] = 0.4));
+  await pad.waitForFunction((b) => document.querySelector('#gauges [data-instrument="right"]')?.dataset.tip !== b, before, { timeout: T });
+  await pad.evaluate(() => (window.__pad.axes[0] = 0));
+  console.log(`ok gamepad stick moved the tip from ${before} to ${await tipOf()}`);
+  await pad.evaluate(() => (window.__pad.buttons[6] = 1));
+  await pad.waitForFunction(() => Number(document.querySelector('#gauges [data-instrument="right"]')?.dataset.forceN) > 0.3, null, {
+    timeout: T,
+  });
+  await pad.evaluate(() => (window.__pad.buttons[6] = 0));
+  const rumble = await pad.evaluate(() => window.__pad.rumble);
+  check(rumble.length > 1 && rumble[0] > 0, `vibration ${JSON.stringify(rumble.slice(0, 5))}`);
+  check(rumble[rumble.length - 1] > rumble[0], `vibration from ${rumble[0]} to ${rumble[rumble.length - 1]} as the force grew`);
+  console.log(`ok gamepad vibration grew with the force: ${rumble[0].toFixed(3)} → ${rumble[rumble.length - 1].toFixed(3)}`);
+  // How the page sends the poses: sampled at 250 Hz (4 ms apart), in batches.
+  const sent = await pad.$eval("#live", (e) => ({ calls: Number(e.dataset.poseCalls), poses: Number(e.dataset.posesSent), spacing: Number(e.dataset.poseSpacingMs) }));
+  check(Math.abs(sent.spacing - 4) < 0.01, `poses ${sent.spacing} ms apart`);
+  check(sent.poses > sent.calls, `${sent.poses} poses in ${sent.calls} calls`);
+  console.log(`ok ${sent.poses} poses 4 ms apart in ${sent.calls} calls`);
+  await pad.close();
+
+  // A restarted server: the page says the connection is lost and comes back.
+  step = "restart";
+  for (const p of context.pages()) await p.close();
+  const lobby = await context.newPage();
+  // The browser logs the refused calls itself while the server is away.
+  lobby.on("pageerror", (e) => problems.push(`lobby: uncaught ${e.message}`));
+  await lobby.goto(url);
+  await useToken(lobby, token);
+  await lobby.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+  await ask("stop", "stopped");
+  await liveState(lobby, "reconnecting");
+  const lost = await lobby.$eval("#notice", (e) => e.textContent);
+  check(/connection lost/.test(lost), `the page says "${lost}"`);
+  await ask("start", "started");
+  await liveState(lobby, "live");
+  await lobby.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+  console.log(`ok server restarted: the page said "${lost}" and came back`);
+
+  // Over TLS: the page loads over https and lists the scenes.
+  if (tlsUrl) {
+    step = "tls";
+    const secure = await launch(["--ignore-certificate-errors"]);
+    try {
+      const page = await secure.context.newPage();
+      watch(page, "tls", problems);
+      await page.goto(tlsUrl);
+      await useToken(page, token);
+      await page.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+      check(page.url().startsWith("https:"), page.url());
+      console.log(`ok console over TLS at ${tlsUrl} lists the scenes`);
+    } finally {
+      await secure.close();
+    }
+  }
 
   check(problems.length === 0, problems.join("; "));
   console.log("browser tests passed");

@@ -36,6 +36,7 @@ pub fn instrument_state(
         pose_sequence,
         contact: contact_state(sim, k) as i32,
         held_vertex_count: ins.held.len() as u32,
+        held_surface_vertices: held_surface_vertices(sim, k),
         local_model: model.as_ref().map(v1::LocalModel::from),
         force: force.map(|f| v1::Force {
             force: Some(to_vec3(&f.force)),
@@ -44,6 +45,20 @@ pub fn instrument_state(
             torque: Some(to_vec3(&f.torque)),
         }),
     }
+}
+
+/// The vertices instrument `k` holds, as surface vertex numbers (their slots in
+/// the surface, the order of [`surface_positions`]). The contact stage pushes and
+/// holds surface vertices only; an interior vertex, which it never holds, would
+/// have no number and is left out.
+pub fn held_surface_vertices(sim: &Simulation, k: usize) -> Vec<u32> {
+    let slot = &sim.mesh.surface.surface_index;
+    sim.instruments[k]
+        .held
+        .iter()
+        .map(|&v| slot[v as usize])
+        .filter(|&s| s != u32::MAX)
+        .collect()
 }
 
 /// Which parts of instrument `k` push tissue: the tip while its plane has depth

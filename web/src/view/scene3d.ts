@@ -1,18 +1,23 @@
 // The 3D view: the liver as it streams (smooth shading, normals recomputed each
 // frame, coloured by displacement from rest), the instruments as cylinders from
-// the tip to the trocar, the trocars, a force arrow per instrument (10 mm per N,
-// as in the recordings' Foxglove scene), an orbit camera and a laparoscope
+// the tip to the trocar, the trocars, the vertices each instrument holds as
+// cyan points, a force arrow per instrument (10 mm per N, as in the recordings'
+// Foxglove scene), an orbit camera and a laparoscope
 // camera looking from a camera port between the trocars.
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import type { SceneDescription } from "../gen/laparo/v1/scene_pb";
 import type { InstrumentState } from "../gen/laparo/v1/frame_pb";
+import { vertexNormals } from "./normals";
 
 /** Liver tissue at rest, and where displacement takes it (at DISPLACEMENT_FULL_M; lighter, still liver-red). */
 const LIVER = new THREE.Color(0x9c3d2c);
 const DISPLACED = new THREE.Color(0xe07a50);
 /** Displacement drawn in the full highlight colour, m: the sag under gravity plus a firm press. */
 const DISPLACEMENT_FULL_M = 0.02;
+/** Held vertices: drawn as cyan points of this many pixels, over the surface. */
+const HELD = new THREE.Color(0x33e0ff);
+const HELD_POINT_PX = 7;
 /** Force arrows: 10 mm per newton. */
 const ARROW_M_PER_N = 0.01;
 
@@ -21,6 +26,11 @@ interface InstrumentView {
   trocar: THREE.Mesh;
   arrow: THREE.ArrowHelper;
   trocarAt: THREE.Vector3;
+  /** The held vertices (surface vertex numbers; room for the whole surface). */
+  held: Uint32Array;
+  heldCount: number;
+  /** Their points, placed on the surface as drawn. */
+  heldPoints: THREE.Points;
 }
 
 export class SceneView {
@@ -42,11 +52,17 @@ export class SceneView {
   private rest: Float32Array = new Float32Array();
   private first: Float32Array | null = null;
   private instruments = new Map<string, InstrumentView>();
+  private triangles: Uint32Array = new Uint32Array();
   private center = new THREE.Vector3();
   private dirty = true;
+  // Scratch vectors of setInstrument: nothing is allocated per frame.
+  private readonly tip = new THREE.Vector3();
+  private readonly mid = new THREE.Vector3();
+  private readonly dir = new THREE.Vector3();
+  private static readonly UP = new THREE.Vector3(0, 1, 0);
 
   constructor(readonly container: HTMLElement) {
-    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer = new THREE.WebGLRenderer({ antialias: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     this.renderer.setClearColor(0x101418);
     container.append(this.renderer.domElement);
@@ -79,7 +95,10 @@ export class SceneView {
       this.scene.remove(this.liver);
       this.liver.geometry.dispose();
     }
-    for (const v of this.instruments.values()) this.scene.remove(v.shaft, v.trocar, v.arrow);
+    for (const v of this.instruments.values()) {
+      this.scene.remove(v.shaft, v.trocar, v.arrow, v.heldPoints);
+      v.heldPoints.geometry.dispose();
+    }
     this.instruments.clear();
     const surface = desc.restSurface;
     this.rest = Float32Array.from(surface?.positions ?? []);
@@ -90,8 +109,11 @@ export class SceneView {
     const colors = new Float32Array(this.rest.length);
     for (let i = 0; i < colors.length; i += 3) LIVER.toArray(colors, i);
     geometry.setAttribute("color", new THREE.BufferAttribute(colors, 3).setUsage(THREE.DynamicDrawUsage));
-    geometry.setIndex(Array.from(surface?.triangles ?? []));
-    geometry.computeVertexNormals();
+    this.triangles = Uint32Array.from(surface?.triangles ?? []);
+    geometry.setIndex(new THREE.BufferAttribute(this.triangles, 1));
+    const normals = new Float32Array(this.rest.length);
+    vertexNormals(this.rest, this.triangles, normals);
+    geometry.setAttribute("normal", new THREE.BufferAttribute(normals, 3).setUsage(THREE.DynamicDrawUsage));
     geometry.computeBoundingSphere();
     this.liver = new THREE.Mesh(
       geometry,
@@ -121,8 +143,18 @@ export class SceneView {
       trocar.lookAt(this.center);
       const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), at, 0.01, 0x33ff66, 0.008, 0.005);
       arrow.visible = false;
-      this.scene.add(shaft, trocar, arrow);
-      this.instruments.set(d.name, { shaft, trocar, arrow, trocarAt: at });
+      const vertices = this.rest.length / 3;
+      const heldGeometry = new THREE.BufferGeometry();
+      heldGeometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(3 * vertices), 3).setUsage(THREE.DynamicDrawUsage));
+      heldGeometry.setDrawRange(0, 0);
+      const heldPoints = new THREE.Points(
+        heldGeometry,
+        new THREE.PointsMaterial({ color: HELD, size: HELD_POINT_PX, sizeAttenuation: false, depthTest: false }),
+      );
+      heldPoints.frustumCulled = false;
+      heldPoints.renderOrder = 1;
+      this.scene.add(shaft, trocar, arrow, heldPoints);
+      this.instruments.set(d.name, { shaft, trocar, arrow, trocarAt: at, held: new Uint32Array(vertices), heldCount: 0, heldPoints });
     }
     // The laparoscope's port: between the trocars, a little above, looking at the liver.
     const port = trocars.length
@@ -161,9 +193,11 @@ export class SceneView {
     }
     this.maxDisplacement = max;
     this.maxChange = Math.sqrt(change);
+    const normal = geometry.getAttribute("normal") as THREE.BufferAttribute;
+    vertexNormals(p, this.triangles, normal.array as Float32Array);
     pos.needsUpdate = true;
     col.needsUpdate = true;
-    geometry.computeVertexNormals();
+    normal.needsUpdate = true;
     this.dirty = true;
   }
 
@@ -171,6 +205,12 @@ export class SceneView {
   setInstrument(s: InstrumentState): void {
     const v = this.instruments.get(s.instrument);
     if (!v) return;
+    // Vertex numbers beyond the surface (a scene that changed under the view) are left out.
+    let count = 0;
+    for (const i of s.heldSurfaceVertices) {
+      if (i < v.held.length && count < v.held.length) v.held[count++] = i;
+    }
+    v.heldCount = count;
     const tip = s.pose?.tip;
     if (!tip) {
       v.shaft.visible = false;
@@ -178,21 +218,21 @@ export class SceneView {
       this.dirty = true;
       return;
     }
-    const a = new THREE.Vector3(tip.x, tip.y, tip.z);
+    const a = this.tip.set(tip.x, tip.y, tip.z);
     // From the tip to the trocar, as the instrument passes through it.
     const end = v.trocarAt;
-    const mid = a.clone().add(end).multiplyScalar(0.5);
-    const dir = end.clone().sub(a);
+    const mid = this.mid.copy(a).add(end).multiplyScalar(0.5);
+    const dir = this.dir.copy(end).sub(a);
     const len = dir.length();
     v.shaft.position.copy(mid);
     v.shaft.scale.set(1, Math.max(len, 1e-4), 1);
-    v.shaft.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), dir.normalize());
+    v.shaft.quaternion.setFromUnitVectors(SceneView.UP, dir.normalize());
     v.shaft.visible = true;
     const f = s.force?.force;
     const magnitude = s.force?.magnitudeN ?? 0;
     if (f && magnitude > 1e-6) {
       v.arrow.position.copy(a);
-      v.arrow.setDirection(new THREE.Vector3(f.x, f.y, f.z).normalize());
+      v.arrow.setDirection(this.dir.set(f.x, f.y, f.z).normalize());
       const l = Math.max(0.004, magnitude * ARROW_M_PER_N);
       v.arrow.setLength(l, Math.min(0.008, 0.4 * l), Math.min(0.005, 0.25 * l));
       v.arrow.visible = true;
@@ -206,9 +246,37 @@ export class SceneView {
   draw(): boolean {
     if (!this.dirty) return false;
     this.dirty = false;
+    this.placeHeld();
     this.renderer.render(this.scene, this.useScope ? this.scope : this.orbit);
     this.drawn++;
     return true;
+  }
+
+  /** Held vertices drawn, per instrument (for the browser tests). */
+  heldDrawn(instrument: string): number {
+    return this.instruments.get(instrument)?.heldPoints.geometry.drawRange.count ?? 0;
+  }
+
+  /** Puts each instrument's held points where the surface as drawn has those vertices. */
+  private placeHeld(): void {
+    if (!this.liver) return;
+    const p = (this.liver.geometry.getAttribute("position") as THREE.BufferAttribute).array as Float32Array;
+    for (const v of this.instruments.values()) {
+      const attr = v.heldPoints.geometry.getAttribute("position") as THREE.BufferAttribute;
+      const out = attr.array as Float32Array;
+      for (let k = 0; k < v.heldCount; k++) {
+        const i = 3 * v.held[k];
+        out[3 * k] = p[i];
+        out[3 * k + 1] = p[i + 1];
+        out[3 * k + 2] = p[i + 2];
+      }
+      v.heldPoints.geometry.setDrawRange(0, v.heldCount);
+      if (v.heldCount > 0) {
+        attr.clearUpdateRanges();
+        attr.addUpdateRange(0, 3 * v.heldCount);
+        attr.needsUpdate = true;
+      }
+    }
   }
 
   redraw(): void {
