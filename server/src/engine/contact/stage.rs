@@ -54,6 +54,10 @@ pub struct ContactStage {
     holders: Vec<u8>,
     /// How far each held vertex slips at the next tick (Coulomb friction), m.
     slide: Vec<Vector3<f64>>,
+    /// The slide being applied this tick, taken from `slide` when held vertices are
+    /// carried: part of where a held vertex starts the contact steps, so that a slip
+    /// stays slipped instead of being put back at the tick's start.
+    slid: Vec<Vector3<f64>>,
     s: Scratch,
 }
 
@@ -106,6 +110,7 @@ impl ContactStage {
             current: rest.to_vec(),
             holders: vec![0; n],
             slide: vec![Vector3::zeros(); n],
+            slid: vec![Vector3::zeros(); n],
             s: Scratch::new(surface, rest, fixed),
         }
     }
@@ -134,8 +139,8 @@ impl ContactStage {
                     let r = rigid_motion(&prev, &cur);
                     for &v in &ins.held {
                         let vi = v as usize;
-                        let slid = state.x[vi] + std::mem::take(&mut self.slide[vi]);
-                        imposed.set(v, r.transform_point(&slid));
+                        self.slid[vi] = std::mem::take(&mut self.slide[vi]);
+                        imposed.set(v, r.transform_point(&(state.x[vi] + self.slid[vi])));
                     }
                 }
                 _ => {
@@ -173,8 +178,10 @@ impl ContactStage {
             self.s.mark = self.s.mark.wrapping_add(1);
             self.s.moved.clear();
             for &v in &surface.vertices {
-                self.end[v as usize] = state.x[v as usize];
-                self.current[v as usize] = self.start[v as usize];
+                let vi = v as usize;
+                self.end[vi] = state.x[vi];
+                // A held vertex starts where its slide took it (zero for the others).
+                self.current[vi] = self.start[vi] + self.slid[vi];
             }
             let bit = 1u8 << k;
             let moves = sub_moves(&prev, &pose);
@@ -261,6 +268,9 @@ impl ContactStage {
                     break;
                 }
             }
+        }
+        for &v in &surface.vertices {
+            self.slid[v as usize] = Vector3::zeros();
         }
         for ins in instruments.iter_mut() {
             self.report_reaction(ins, model, state);
@@ -388,7 +398,9 @@ impl ContactStage {
                     let stiffness = tangent.dot(&(kii * tangent.into_inner()));
                     let step = excess / stiffness;
                     if stiffness > 0.0 && step <= MAX_SLIDE * radius {
-                        slide[vi] = tangent.into_inner() * step;
+                        if step >= MIN_SLIDE * radius {
+                            slide[vi] = tangent.into_inner() * step;
+                        }
                         true
                     } else {
                         false
@@ -471,6 +483,16 @@ const ADHESION: f64 = 0.1;
 
 /// The longest slide of a held vertex in one tick, as a fraction of the radius.
 const MAX_SLIDE: f64 = 0.5;
+
+/// The shortest slide made, as a fraction of the radius (5 µm on a 5 mm shaft). The
+/// slide is a step of the excess drag over the vertex's own stiffness `K_ii`, stiffer
+/// than the tissue around it, so successive slides close in on the friction cone
+/// geometrically and never quite reach it; each moves the held vertex off the chords
+/// the push-out left its edges on, and the push-out puts them back. Below this the
+/// slides only stirred those margins (10 µm of push-out every other tick, a residual
+/// of a millinewton that never died out); the drag they leave is `K_ii` times 5 µm,
+/// a few hundredths of a percent of the force.
+const MIN_SLIDE: f64 = 1e-3;
 
 /// What becomes of a held vertex this tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
