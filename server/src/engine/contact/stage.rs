@@ -274,12 +274,21 @@ impl ContactStage {
         }
         for ins in instruments.iter_mut() {
             self.report_reaction(ins, model, state);
-            ins.previous = ins.current;
-            // What the stage holds keeps the velocity of its motion over the tick.
-            for &v in &ins.held {
-                let v = v as usize;
-                state.v[v] = (state.x[v] - self.start[v]) / dt;
+            // What the stage holds moves with the instrument: its velocity is the
+            // instrument's at that point over the tick, `(R(x₀) − x₀)/dt`. The jumps of
+            // the contact steps (a vertex put back on the instrument's surface, a tip
+            // triangle laid on its plane) are corrections of position, not motion:
+            // counted as velocity they were tens of metres a second at 1 kHz on a
+            // coarse mesh, which a vertex kept when released and threw the tissue
+            // through the instrument.
+            if let (Some(prev), Some(cur)) = (ins.previous, ins.current) {
+                let r = rigid_motion(&prev, &cur);
+                for &v in &ins.held {
+                    let x0 = self.start[v as usize];
+                    state.v[v as usize] = (r.transform_point(&x0) - x0) / dt;
+                }
             }
+            ins.previous = ins.current;
         }
     }
 
@@ -381,7 +390,14 @@ impl ContactStage {
             if s.moved_mark[vi] == s.mark {
                 return true;
             }
-            let hold = stays_held(&state.x[vi], &state.reaction[vi], &pose, length, ins_params);
+            let hold = stays_held(
+                &state.x[vi],
+                &state.reaction[vi],
+                &pose,
+                length,
+                radius,
+                ins_params,
+            );
             let keep = match hold {
                 Hold::Stick => true,
                 Hold::Slip(tangent, excess) => {
@@ -526,17 +542,11 @@ fn stays_held(
     reaction: &Vector3<f64>,
     pose: &InstrumentPose,
     length: f64,
+    radius: f64,
     (tip_contact, friction, adhesion): (bool, f64, f64),
 ) -> Hold {
-    let c = super::closest::closest_point_axis(x, pose, length);
-    let at_tip = c.beta <= 0.0 && (x - pose.tip).dot(&pose.axis) <= 0.0;
-    let m = if at_tip && tip_contact {
-        -pose.axis.into_inner()
-    } else {
-        match c.offset.try_normalize(0.0) {
-            Some(m) => m,
-            None => return Hold::Release,
-        }
+    let Some(m) = contact_normal(x, pose, length, radius, tip_contact) else {
+        return Hold::Release;
     };
     let normal = -reaction.dot(&m);
     if normal < -adhesion || (normal <= 0.0 && adhesion == 0.0) {
@@ -550,6 +560,40 @@ fn stays_held(
         _ => Hold::Stick,
     }
 }
+
+/// The instrument's outward surface normal `m` at a held vertex `x`: `−Z` on the
+/// tip's flat end, else the radial direction from the axis; `None` on the axis.
+///
+/// The tip's end is where the vertex lies at or beyond the tip (`β ≤ 0`), and, with
+/// a pressing tip, also where it lies off the shaft's surface (beyond
+/// [`OFF_SHAFT`]·r from the axis) level with the tip (`(x − P)·Z ≤ r`, the split of
+/// the local model): the tip press lays the whole triangle under the tip on its
+/// plane, so on a coarse mesh it holds vertices a centimetre or two beside the
+/// shaft. Those touch no part of the shaft; taking the radial direction for them
+/// made a withdrawal along the axis look like a slide along the shaft, and they
+/// crept toward the tip a few hundred microns a tick, held for half a second.
+fn contact_normal(
+    x: &Point3<f64>,
+    pose: &InstrumentPose,
+    length: f64,
+    radius: f64,
+    tip_contact: bool,
+) -> Option<Vector3<f64>> {
+    let c = super::closest::closest_point_axis(x, pose, length);
+    let level = (x - pose.tip).dot(&pose.axis);
+    let at_tip =
+        (c.beta <= 0.0 && level <= 0.0) || (c.distance() > OFF_SHAFT * radius && level <= radius);
+    if at_tip && tip_contact {
+        Some(-pose.axis.into_inner())
+    } else {
+        c.offset.try_normalize(0.0)
+    }
+}
+
+/// Distance from the axis, in radii, beyond which a held vertex is off the shaft's
+/// surface: the push-out leaves vertices at `r (1 + 10⁻⁴)` and an edge pushed out
+/// leaves its ends a little further; 1.05 r is well clear of both.
+const OFF_SHAFT: f64 = 1.05;
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
 /// on a straight line in the instrument's frame while the instrument turns about its
