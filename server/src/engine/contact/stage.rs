@@ -17,7 +17,15 @@
 //! instrument and is released when the tissue pulls it away: when its elastic reaction
 //! `−(K u)_i` has a positive component along the direction from the axis to the
 //! vertex. That is a unilateral contact: the instrument pushes, it never pulls, and
-//! when it withdraws the tissue relaxes.
+//! when it withdraws the tissue relaxes. The instrument's normal at a held vertex is
+//! the tip's end for a vertex beyond the tip or laid on the tip plane beside the shaft,
+//! else the radial direction (see `contact_normal`). A held vertex moves at the
+//! instrument's velocity; the stage's jumps are corrections of position, not motion.
+//!
+//! Friction. A held vertex dragged harder than `μ N` slides along the instrument; the
+//! slide is made at the next tick, both in its imposed target and in where the contact
+//! steps start it, so that it stays slid and a held instrument brings the tissue to
+//! equilibrium.
 //!
 //! Why no marching from triangle to triangle (§2.3): the broad phase already returns
 //! every triangle whose motion in the instrument's frame comes within `r` of the axis
