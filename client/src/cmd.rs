@@ -8,6 +8,8 @@
 //! - [`load`]: N concurrent stations on one session, as a markdown table row.
 //! - [`replay`]: a recording's summary and plot, or a server playing it back.
 //! - [`recordings`]: the recordings of a directory or a server; recovery.
+//! - [`sessions`]: a server's sessions: create, list, describe, close; evict a
+//!   station.
 //! - [`resim`]: a recording's physics re-run from its recorded poses.
 //!
 //! Shared: [`args`] (how to reach a server, value checks) and [`out`] (standard
@@ -29,6 +31,7 @@ pub mod out;
 pub mod recordings;
 pub mod replay;
 pub mod resim;
+pub mod sessions;
 pub mod station;
 
 #[cfg(test)]
@@ -72,6 +75,10 @@ pub enum Command {
     /// The recordings on disk.
     #[command(subcommand)]
     Recordings(recordings::RecordingsCommand),
+    /// A server's sessions: create one (its id is what `station` and `observe`
+    /// take), list them, describe one, close one, evict a station.
+    #[command(subcommand)]
+    Sessions(sessions::SessionsCommand),
     /// Re-run a recording's physics from its recorded poses and report the largest
     /// deviation from the recorded surfaces and forces: zero with the same build and
     /// scene.

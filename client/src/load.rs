@@ -33,7 +33,7 @@ use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::{
     CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Role, SessionInfo,
 };
-use crate::station::{Intake, Link, Poses, Received, Sent, StationError, answered};
+use crate::station::{Heartbeat, Intake, Link, Poses, Received, Sent, StationError, answered};
 
 /// What [`run_load`] does.
 #[derive(Clone, Debug, PartialEq)]
@@ -425,6 +425,7 @@ async fn load_station(
     let mut poses = Poses::new();
     let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / pose_rate_hz));
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let mut heartbeat = Heartbeat::new();
     let deadline = tokio::time::sleep(duration);
     tokio::pin!(deadline);
 
@@ -445,6 +446,7 @@ async fn load_station(
                 // The session closed before the end of the run.
                 None => return Ok(StationLoad::of(instrument.is_some(), intake, &poses)),
             },
+            _ = heartbeat.due() => heartbeat.beat(&poses, &link.outgoing),
             _ = pose_tick.tick(), if instrument.is_some() => {
                 let Some((name, path)) = &instrument else { continue };
                 let t = t0.elapsed().as_secs_f64();

@@ -39,6 +39,7 @@ fn main() -> ExitCode {
             Command::Load(args) => cmd::load::run(args).await,
             Command::Replay(args) => cmd::replay::run(args).await,
             Command::Recordings(command) => cmd::recordings::run(command).await,
+            Command::Sessions(command) => cmd::sessions::run(command).await,
             Command::Resim(args) => cmd::resim::run(args),
         }
     });

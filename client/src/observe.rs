@@ -224,13 +224,14 @@ pub async fn run_observe(
     let stop = when_stopped(config.stop.take());
     tokio::pin!(stop);
 
+    let mut heard = Instant::now();
     loop {
         tokio::select! {
             biased;
             _ = &mut stop => break,
             _ = &mut deadline => break,
             message = stream.message() => match message {
-                Ok(Some(message)) => match message.kind {
+                Ok(Some(message)) => { heard = Instant::now(); match message.kind {
                     Some(observe_message::Kind::Scene(scene)) => {
                         on_report(ObserveReport::Scene(&scene));
                     }
@@ -250,12 +251,14 @@ pub async fn run_observe(
                         on_report(ObserveReport::Event(&event));
                     }
                     None => {}
-                },
+                }},
                 Ok(None) => {
                     summary.server_closed = true;
                     break;
                 }
-                Err(status) => return Err(status.into()),
+                Err(status) => {
+                    return Err(StationError::after_silence(status, heard.elapsed()));
+                }
             },
             _ = status_tick.tick() => {
                 line.tick = ticks.last.unwrap_or(0);

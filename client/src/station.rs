@@ -23,6 +23,9 @@
 //!      all the station's instruments;
 //!    - progress: a [`StationProgress`] on a watch channel every
 //!      [`PROGRESS_PERIOD`], for live display;
+//!    - a `Heartbeat` (`heartbeat`) at the end of every [`HEARTBEAT_PERIOD`] in
+//!      which no pose was queued, so that the server does not take a station with
+//!      nothing to send for a station gone;
 //! 4. leave: unless the server ended the stream, send `Leave` and let the server
 //!    end it; then stop the force loops and sum up.
 //!
@@ -42,6 +45,7 @@ use crate::haptics::Trajectory;
 use crate::proto::v1::{self, InstrumentDescription, JoinRequest, SceneDescription};
 
 mod config;
+pub(crate) mod heartbeat;
 pub(crate) mod instruments;
 pub(crate) mod intake;
 pub(crate) mod link;
@@ -52,6 +56,8 @@ mod report;
 mod tests;
 
 pub use config::{StationConfig, StationError};
+pub use heartbeat::HEARTBEAT_PERIOD;
+pub(crate) use heartbeat::Heartbeat;
 pub use instruments::ModelIntake;
 pub(crate) use intake::{Intake, Received, TickCounter, force_magnitude};
 pub(crate) use link::Link;
@@ -166,6 +172,7 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut progress_tick = tokio::time::interval(PROGRESS_PERIOD);
     progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let mut heartbeat = Heartbeat::new();
     let deadline = after(config.duration.map(|d| d.saturating_sub(started.elapsed())));
     tokio::pin!(deadline);
     let stop = when_stopped(config.stop.take());
@@ -193,6 +200,7 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
                     instrument.send_pose(&mut poses, &link.outgoing);
                 }
             }
+            _ = heartbeat.due() => heartbeat.beat(&poses, &link.outgoing),
             _ = progress_tick.tick() => {
                 if let Some(progress) = &config.progress {
                     progress.send_replace(progress_of(t0, &joined, &intake, &poses, &mut instruments));

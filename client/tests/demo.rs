@@ -27,6 +27,13 @@ fn the_demo_presses_the_liver_and_reports() {
         .unwrap_or_else(|| panic!("no max |force| line in\n{stdout}"));
     assert!(max_force > 0.05, "max force {max_force} N\n{stdout}");
     assert!(stdout.contains("CONTACT_BEGAN"), "{stdout}");
+    // It says where to watch: the console of the server it runs.
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.starts_with("demo: console http://127.0.0.1:") && l.contains("/ ")),
+        "{stdout}"
+    );
     assert!(stdout.contains("station errors       none"), "{stdout}");
     // The session was recorded where asked, and the summary says where.
     let files: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().collect();

@@ -66,6 +66,21 @@ fn state(tick: u64, sequence: u64, valid: bool) -> ServerMessage {
 #[tonic::async_trait]
 impl Station for Fake {
     type JoinStream = ReceiverStream<Result<ServerMessage, Status>>;
+    type AttachStream = ReceiverStream<Result<laparo_proto::v1::AttachMessage, Status>>;
+
+    async fn attach(
+        &self,
+        _: Request<laparo_proto::v1::JoinRequest>,
+    ) -> Result<Response<Self::AttachStream>, Status> {
+        Err(Status::unimplemented("the client under test uses Join"))
+    }
+
+    async fn send_poses(
+        &self,
+        _: Request<laparo_proto::v1::SendPosesRequest>,
+    ) -> Result<Response<laparo_proto::v1::SendPosesResponse>, Status> {
+        Err(Status::unimplemented("the client under test uses Join"))
+    }
 
     async fn join(
         &self,

@@ -67,7 +67,10 @@ const METHODS: &[(&str, &str, &str, &str, bool, bool)] = &[
     ("Sessions", "GetSession", "GetSessionRequest", "SessionInfo", false, false),
     ("Sessions", "ListSessions", "ListSessionsRequest", "ListSessionsResponse", false, false),
     ("Sessions", "CloseSession", "CloseSessionRequest", "CloseSessionResponse", false, false),
+    ("Sessions", "EvictStation", "EvictStationRequest", "EvictStationResponse", false, false),
     ("Station", "Join", "StationMessage", "ServerMessage", true, true),
+    ("Station", "Attach", "JoinRequest", "AttachMessage", false, true),
+    ("Station", "SendPoses", "SendPosesRequest", "SendPosesResponse", false, false),
     ("Observe", "Observe", "ObserveRequest", "ObserveMessage", false, true),
     ("Recordings", "ListRecordings", "ListRecordingsRequest", "ListRecordingsResponse", false, false),
     ("Recordings", "Replay", "ReplayRequest", "ObserveMessage", false, true),
@@ -454,6 +457,7 @@ fn station_and_observe_messages_round_trip_every_variant() {
         In::Leave(Leave {
             reason: "done".into(),
         }),
+        In::Heartbeat(v1::Heartbeat {}),
     ] {
         round_trip(&StationMessage { kind: Some(kind) });
     }

@@ -10,6 +10,8 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
+use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
 use laparo_server::headless;
 use laparo_server::headless::trajectory::Trajectory;
@@ -53,6 +55,10 @@ struct ServeArgs {
     /// Poses per second per instrument a station may send.
     #[arg(long, default_value_t = 2000.0, value_parser = positive_rate)]
     max_pose_rate: f64,
+    /// Seconds a station may send nothing (no pose, no heartbeat), or take none of
+    /// the server's messages, before it loses its instruments (0.5 to 3600).
+    #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = station_timeout)]
+    station_timeout: f64,
     /// Listen on a non-loopback address without TLS and tokens.
     #[arg(long)]
     insecure: bool,
@@ -62,6 +68,40 @@ struct ServeArgs {
     /// Record no session.
     #[arg(long, conflicts_with = "recordings")]
     no_recording: bool,
+    /// Most sessions open at once [default: max(1, min(16 × cores, memory / 64 MiB))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    max_sessions: Option<u32>,
+    /// Most connections open at once; more are closed as they come [default:
+    /// max(16, min(8 × sessions + 64, fd limit − 128 − 2 × sessions))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    max_connections: Option<u32>,
+    /// Most replays streaming at once [default: max(1, min(32 × cores, memory / 4 / 16 MiB))].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    max_replays: Option<u32>,
+    /// Close a connection with no open stream after this many seconds (at most 86400).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = idle_connection_seconds)]
+    idle_connection: f64,
+    /// An origin (`http://host:port`) whose pages may call the server from a
+    /// browser (CORS); repeat for more. Without it only the console the server
+    /// serves itself may.
+    #[arg(long = "cors-origin", value_name = "ORIGIN", value_parser = cors_origin)]
+    cors_origins: Vec<String>,
+}
+
+/// An idle-connection timeout in seconds: (0, 86400].
+fn idle_connection_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 86_400.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s} is not a duration in (0, 86400] seconds"))
+    }
+}
+
+/// An origin as CORS names it: `scheme://host[:port]`.
+fn cors_origin(s: &str) -> Result<String, String> {
+    laparo_server::console::parse_origin(s).map_err(|e| e.to_string())?;
+    Ok(s.to_string())
 }
 
 /// An idle timeout in seconds, within the range sessions accept.
@@ -71,8 +111,17 @@ fn idle_seconds(s: &str) -> Result<f64, String> {
     Ok(v)
 }
 
+/// A station timeout in seconds, within the range the server accepts.
+fn station_timeout(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    laparo_server::service::StationTimeout::from_secs(v)?;
+    Ok(v)
+}
+
 /// Serves until SIGINT or SIGTERM.
 fn serve(args: ServeArgs) -> Result<(), String> {
+    use laparo_server::service::capacity::{Capacity, Machine};
+    use laparo_server::service::shutdown::RUNTIME_GRACE;
     use laparo_server::service::{PoseLimits, ServeConfig, TlsFiles, Tokens, serve};
     let tokens = args
         .tokens
@@ -93,18 +142,41 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             rate_hz: args.max_pose_rate,
             burst: laparo_server::session::input::stall_burst(args.max_pose_rate),
         },
+        station_timeout: laparo_server::service::StationTimeout::from_secs(args.station_timeout)
+            .map_err(|e| format!("--station-timeout: {e}"))?,
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),
+        capacity: {
+            let machine = Machine::this();
+            let mut capacity = Capacity::for_machine(machine);
+            if let Some(n) = args.max_sessions {
+                // The connection default follows the session limit.
+                capacity = capacity.with_sessions(n as usize, machine);
+            }
+            if let Some(n) = args.max_connections {
+                capacity.connections = n as usize;
+            }
+            if let Some(n) = args.max_replays {
+                capacity.replays = n as usize;
+            }
+            capacity
+        },
+        idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
+        cors_origins: args.cors_origins,
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
-    runtime.block_on(async move {
+    let served = runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(args.listen)
             .await
             .map_err(|e| format!("cannot listen on {}: {e}", args.listen))?;
         serve(config, listener, shutdown_signal())
             .await
             .map_err(|e| e.to_string())
-    })
+    });
+    // Tasks still running (a replay's read burst) get a bounded time, not forever:
+    // part of the shutdown bound.
+    runtime.shutdown_timeout(RUNTIME_GRACE);
+    served
 }
 
 /// SIGINT (Ctrl-C) or SIGTERM.
@@ -154,6 +226,10 @@ struct RunArgs {
     /// Write the final deformed volume mesh as VTK XML unstructured grid (.vtu).
     #[arg(long, value_name = "OUT.vtu")]
     export: Option<PathBuf>,
+    /// Write a time series for ParaView: a frame every T simulated seconds (and the
+    /// start and the end), as OUT_000000.vtu, ... beside OUT.pvd, which lists them.
+    #[arg(long, num_args = 2, value_names = ["T", "OUT.pvd"], conflicts_with = "static_solve")]
+    export_every: Option<Vec<String>>,
 }
 
 fn positive_rate(s: &str) -> Result<f64, String> {
@@ -195,7 +271,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// The period and path of `--export-every T OUT.pvd`, checked.
+fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
+    let [period, path] = values else {
+        return Err("--export-every takes a period in seconds and a .pvd path".into());
+    };
+    let seconds = positive_seconds(period).map_err(|e| format!("--export-every {period}: {e}"))?;
+    Ok((seconds, PathBuf::from(path)))
+}
+
 fn run(args: RunArgs) -> Result<(), String> {
+    let series = args.export_every.as_deref().map(export_every).transpose()?;
     let scene = match &args.scene {
         Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
         None => Scene::default_scene(),
@@ -257,25 +343,64 @@ fn run(args: RunArgs) -> Result<(), String> {
         );
     } else {
         let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
-        let summary = headless::run_scripted(&mut sim, seconds, script, |sim, report| {
-            let mut contact = String::new();
-            for ins in sim.instruments.iter().filter(|i| i.current.is_some()) {
-                contact += &format!(
-                    "  {}: {} held, {:.3} N",
-                    ins.name,
-                    ins.held.len(),
-                    ins.report.reaction.norm()
-                );
+        let mut pvd = None;
+        if let Some((period, path)) = &series {
+            // At most one frame a tick: T below the tick exports every tick.
+            let frames = (seconds / period.max(sim.dt)).floor() + 2.0;
+            if frames > pvd::MAX_FRAMES as f64 {
+                return Err(format!(
+                    "--export-every {period}: {frames} frames over {seconds} s; at most {} (raise T)",
+                    pvd::MAX_FRAMES
+                ));
             }
-            println!(
-                "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
-                sim.tick,
-                sim.time,
-                sim.max_displacement() * 1e3,
-                report.substeps,
-                report.cg_iterations
-            );
-        });
+            let mut series = PvdSeries::new(path);
+            series
+                .write_frame(&sim)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            pvd = Some((series, *period, sim.time, path.clone(), None));
+        }
+        let mut frame_due = |sim: &Simulation| -> bool {
+            let Some((series, period, last, path, error)) = &mut pvd else {
+                return true;
+            };
+            // Due when a period has passed (half a tick's slack against round-off).
+            if sim.time - *last + 0.5 * sim.dt < *period {
+                return true;
+            }
+            *last = sim.time;
+            match series.write_frame(sim) {
+                Ok(()) => true,
+                Err(e) => {
+                    *error = Some(format!("cannot write {}: {e}", path.display()));
+                    false
+                }
+            }
+        };
+        let summary = headless::run_observed(
+            &mut sim,
+            seconds,
+            script,
+            |sim, report| {
+                let mut contact = String::new();
+                for ins in sim.instruments.iter().filter(|i| i.current.is_some()) {
+                    contact += &format!(
+                        "  {}: {} held, {:.3} N",
+                        ins.name,
+                        ins.held.len(),
+                        ins.report.reaction.norm()
+                    );
+                }
+                println!(
+                    "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
+                    sim.tick,
+                    sim.time,
+                    sim.max_displacement() * 1e3,
+                    report.substeps,
+                    report.cg_iterations
+                );
+            },
+            &mut frame_due,
+        );
         println!(
             "ran {} ticks ({:.3} s simulated) in {:.3} s: tick median {:.3} ms, p99 {:.3} ms, max {:.3} ms; {:.1}x real time",
             summary.ticks,
@@ -292,6 +417,17 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.unconverged,
             summary.max_displacement * 1e3
         );
+        if let Some((mut series, _, last, path, error)) = pvd {
+            if let Some(e) = error {
+                return Err(e);
+            }
+            if last < sim.time {
+                series
+                    .write_frame(&sim)
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            }
+            println!("wrote {} ({} frames)", path.display(), series.len());
+        }
     }
     if let Some(path) = &args.export {
         write_vtu(&sim, path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;

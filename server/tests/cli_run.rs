@@ -168,3 +168,97 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("`scalpel`"));
 }
+
+/// The `Points` block of a VTU file.
+fn points(vtu: &str) -> Vec<f64> {
+    let start = vtu.find("<Points>").expect("a Points block");
+    let body = &vtu[start..];
+    let body =
+        &body[body.find("format=\"ascii\">").unwrap() + 15..body.find("</DataArray>").unwrap()];
+    body.split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn a_time_series_lists_rest_points_and_displacements_at_each_period() {
+    // 0.5 s at 60 Hz (30 ticks), a frame every 0.1 s: t = 0, 0.1, ..., 0.5 — six
+    // frames, each with the rest points (so that Warp By Vector draws X + u) and the
+    // last one with exactly the library's displacement after 30 ticks.
+    let out = temp("series.pvd");
+    let status = server()
+        .args(["run", "--seconds", "0.5", "--export-every", "0.1"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let pvd = std::fs::read_to_string(&out).unwrap();
+    let times: Vec<f64> = pvd
+        .match_indices("timestep=\"")
+        .map(|(k, m)| {
+            let rest = &pvd[k + m.len()..];
+            rest[..rest.find('"').unwrap()].parse().unwrap()
+        })
+        .collect();
+    assert_eq!(times.len(), 6, "{pvd}");
+    for (k, t) in times.iter().enumerate() {
+        assert!((t - 0.1 * k as f64).abs() < 1e-9, "frame {k} at {t}");
+    }
+    assert!(pvd.contains("file=\"series_000005.vtu\""), "{pvd}");
+    let mut sim = Scene::default_scene().build().unwrap();
+    let rest: Vec<f64> = sim
+        .model
+        .rest
+        .iter()
+        .flat_map(|p| [p.x, p.y, p.z])
+        .collect();
+    let first = std::fs::read_to_string(out.with_file_name("series_000000.vtu")).unwrap();
+    assert_eq!(points(&first), rest);
+    assert!(data_array(&first, "displacement").iter().all(|&d| d == 0.0));
+    let last = std::fs::read_to_string(out.with_file_name("series_000005.vtu")).unwrap();
+    assert_eq!(points(&last), rest);
+    headless::run(&mut sim, 0.5, |_, _| {});
+    let u: Vec<f64> = sim
+        .state
+        .x
+        .iter()
+        .zip(&sim.model.rest)
+        .flat_map(|(x, r)| {
+            let u = x - r;
+            [u.x, u.y, u.z]
+        })
+        .collect();
+    assert_eq!(data_array(&last, "displacement"), u);
+}
+
+#[test]
+fn a_bad_series_period_or_folder_fails_with_a_message() {
+    for period in ["0", "-1", "nan", "soon"] {
+        let out = server()
+            .args(["run", "--seconds", "0.1", "--export-every", period, "x.pvd"])
+            .output()
+            .unwrap();
+        assert_ne!(out.status.code(), Some(0), "{period}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains(period),
+            "{period}"
+        );
+    }
+    let out = server()
+        .args([
+            "run",
+            "--seconds",
+            "0.1",
+            "--export-every",
+            "0.05",
+            "/no/such/dir/s.pvd",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/dir/s"));
+}

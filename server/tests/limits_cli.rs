@@ -47,6 +47,23 @@ fn an_idle_timeout_out_of_range_is_a_usage_error_naming_the_option_and_range() {
 }
 
 #[test]
+fn a_station_timeout_out_of_range_is_a_usage_error_naming_the_option_and_range() {
+    for bad in ["0", "0.4", "-1", "3601", "1e20", "inf", "NaN", "five"] {
+        let out = finish(
+            server()
+                .args(["--listen", "127.0.0.1:0", "--no-recording"])
+                .arg(format!("--station-timeout={bad}"))
+                .spawn()
+                .unwrap(),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
+        assert!(stderr.contains("--station-timeout"), "{bad}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{bad}: {stderr}");
+    }
+}
+
+#[test]
 fn a_headless_run_on_a_fifo_mesh_fails_instead_of_blocking() {
     let dir = tempfile::tempdir().unwrap();
     let pipe = dir.path().join("pipe.msh");

@@ -8,6 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::elastic::Formulation;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
 use nalgebra::{Point3, Unit, Vector3};
@@ -42,13 +43,16 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn ticks_allocate_nothing() {
-    for kind in [
+    let kinds = [
         IntegratorKind::Explicit,
         IntegratorKind::Implicit,
         IntegratorKind::Static,
-    ] {
+    ];
+    let models = [Formulation::Linear, Formulation::Corotational];
+    for (kind, model) in kinds.into_iter().flat_map(|k| models.map(|m| (k, m))) {
         let mut scene = Scene::default_scene();
         scene.mechanics.integrator = kind;
+        scene.material.model = model;
         let mut sim = scene.build().unwrap();
         // Move some vertices as an instrument would, so imposed targets change too.
         let held: Vec<u32> = (0..sim.mesh.vertex_count() as u32)
@@ -73,7 +77,7 @@ fn ticks_allocate_nothing() {
         assert_eq!(
             after - before,
             0,
-            "{kind:?}: {} allocations in 20 ticks",
+            "{kind:?} {model:?}: {} allocations in 20 ticks",
             after - before
         );
     }
@@ -83,7 +87,14 @@ fn ticks_allocate_nothing() {
 fn contact_ticks_allocate_nothing() {
     // Both instruments press the front of the liver, one with its tip and one with its
     // shaft, turning as they go (so the stage takes several sub-moves a tick).
-    let mut sim = Scene::default_scene().build().unwrap();
+    for model in [Formulation::Linear, Formulation::Corotational] {
+        let mut scene = Scene::default_scene();
+        scene.material.model = model;
+        contact_ticks_allocate_nothing_with(scene.build().unwrap());
+    }
+}
+
+fn contact_ticks_allocate_nothing_with(mut sim: laparo_server::engine::simulation::Simulation) {
     let (lo, _) = sim.mesh.bounding_box();
     let front = common::contact::front_point(&sim);
     let pose = |k: usize| {

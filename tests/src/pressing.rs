@@ -40,3 +40,44 @@ pub fn state_of<'a>(m: &'a v1::ServerMessage, instrument: &str) -> Option<&'a v1
         _ => None,
     }
 }
+
+/// Floods `station` with up to 10⁶ poses of `instrument` at `tip` (sequence numbers
+/// from `first_sequence`, each send bounded by `send_wait`) until the server closes
+/// the stream, and returns how many `RATE_LIMITED` errors it answered and the code
+/// the stream closed with (`Ok` for a clean end). Panics if the stream is still open
+/// after `close_wait`.
+pub async fn flood_until_closed(
+    station: &mut StationStream,
+    instrument: &'static str,
+    tip: [f64; 3],
+    first_sequence: u64,
+    send_wait: Duration,
+    close_wait: Duration,
+) -> (u64, tonic::Code) {
+    let tx = station.tx.clone();
+    let sender = tokio::spawn(async move {
+        for k in 0..1_000_000u64 {
+            let message = pose(instrument, tip, [0.0, 0.0, 1.0], first_sequence + k);
+            match tokio::time::timeout(send_wait, tx.send(message)).await {
+                Ok(Ok(())) => {}
+                _ => return,
+            }
+        }
+    });
+    let closed = tokio::time::timeout(close_wait, async {
+        let mut limited = 0u64;
+        loop {
+            match station.rx.message().await {
+                Ok(Some(v1::ServerMessage {
+                    kind: Some(Kind::Error(e)),
+                })) if e.code == v1::ErrorCode::RateLimited as i32 => limited += 1,
+                Ok(Some(_)) => {}
+                Ok(None) => return (limited, tonic::Code::Ok),
+                Err(status) => return (limited, status.code()),
+            }
+        }
+    })
+    .await;
+    sender.abort();
+    closed.expect("the stream was never closed")
+}

@@ -181,3 +181,22 @@ where
     .ok()
     .flatten()
 }
+
+/// A token table: `(token, caller name, role, instruments it may claim or None for
+/// any)` a row.
+pub fn tokens(
+    rows: &[(&str, &str, laparo_server::service::Role, Option<&[&str]>)],
+) -> laparo_server::service::Tokens {
+    let mut tokens = laparo_server::service::Tokens::default();
+    for &(token, name, role, instruments) in rows {
+        tokens.insert(
+            token,
+            laparo_server::service::Caller {
+                name: name.into(),
+                role,
+                instruments: instruments.map(|i| i.iter().map(|s| s.to_string()).collect()),
+            },
+        );
+    }
+    tokens
+}

@@ -5,7 +5,7 @@
 use laparo_client::station::{StationConfig, StationError, run_station};
 use laparo_proto::v1;
 use laparo_proto::v1::server_message::Kind;
-use laparo_server::service::{Caller, Role, ServeConfig, Tokens};
+use laparo_server::service::{Role, ServeConfig};
 use laparo_tests::server::*;
 use tonic::Code;
 use tonic::transport::Channel;
@@ -15,23 +15,10 @@ const TRAINEE: Option<&str> = Some("trainee-token");
 
 /// A server with an instructor token and a trainee token that may claim anything.
 async fn server_with_tokens() -> TestServer {
-    let mut tokens = Tokens::default();
-    tokens.insert(
-        TEACHER.unwrap(),
-        Caller {
-            name: "instructor".into(),
-            role: Role::Instructor,
-            instruments: None,
-        },
-    );
-    tokens.insert(
-        TRAINEE.unwrap(),
-        Caller {
-            name: "trainee".into(),
-            role: Role::Trainee,
-            instruments: None,
-        },
-    );
+    let tokens = tokens(&[
+        (TEACHER.unwrap(), "instructor", Role::Instructor, None),
+        (TRAINEE.unwrap(), "trainee", Role::Trainee, None),
+    ]);
     TestServer::start(ServeConfig {
         tokens: Some(tokens),
         ..ServeConfig::default()

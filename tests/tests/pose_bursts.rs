@@ -7,7 +7,7 @@ use std::time::Duration;
 use laparo_proto::v1;
 use laparo_proto::v1::server_message::Kind;
 use laparo_server::service::ServeConfig;
-use laparo_tests::pressing::{front, state_of};
+use laparo_tests::pressing::{flood_until_closed, front, state_of};
 use laparo_tests::server::*;
 use tonic::Code;
 
@@ -85,34 +85,9 @@ async fn sustained_poses_far_above_the_limit_close_the_stream() {
     let (mut a, joined) = join(ch.clone(), None, &session, &["left"]).await.unwrap();
     let f = front(&joined);
     let away = [f[0], f[1], f[2] + 0.05];
-    let z = [0.0, 0.0, 1.0];
     // As fast as the loopback carries them, until the server closes the stream (at
     // most 10^6 poses, each send bounded).
-    let tx = a.tx.clone();
-    let sender = tokio::spawn(async move {
-        for k in 1..=1_000_000u64 {
-            match tokio::time::timeout(WAIT, tx.send(pose("left", away, z, k))).await {
-                Ok(Ok(())) => {}
-                _ => return,
-            }
-        }
-    });
-    let closed = tokio::time::timeout(Duration::from_secs(60), async {
-        let mut limited = 0u64;
-        loop {
-            match a.rx.message().await {
-                Ok(Some(v1::ServerMessage {
-                    kind: Some(Kind::Error(e)),
-                })) if e.code == v1::ErrorCode::RateLimited as i32 => limited += 1,
-                Ok(Some(_)) => {}
-                Ok(None) => return (limited, Code::Ok),
-                Err(status) => return (limited, status.code()),
-            }
-        }
-    })
-    .await
-    .expect("the stream was never closed");
-    sender.abort();
+    let closed = flood_until_closed(&mut a, "left", away, 1, WAIT, Duration::from_secs(60)).await;
     assert!(closed.0 > 0, "no pose was rate-limited");
     assert_eq!(closed.1, Code::ResourceExhausted);
     let (rejected, _) = counts(ch.clone(), &session).await;

@@ -4,30 +4,17 @@
 use std::time::Duration;
 
 use laparo_proto::v1;
-use laparo_server::service::{Caller, Role, ServeConfig, Tokens};
+use laparo_server::service::{Role, ServeConfig};
 use laparo_tests::recordings::*;
 use laparo_tests::server::*;
 use tonic::Code;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn trainees_review_recordings_and_only_instructors_watch_one_being_made() {
-    let mut tokens = Tokens::default();
-    tokens.insert(
-        "instructor-token",
-        Caller {
-            name: "instructor".into(),
-            role: Role::Instructor,
-            instruments: None,
-        },
-    );
-    tokens.insert(
-        "trainee-token",
-        Caller {
-            name: "trainee".into(),
-            role: Role::Trainee,
-            instruments: None,
-        },
-    );
+    let tokens = tokens(&[
+        ("instructor-token", "instructor", Role::Instructor, None),
+        ("trainee-token", "trainee", Role::Trainee, None),
+    ]);
     let dir = recordings_dir("replay-roles");
     let server = TestServer::start(ServeConfig {
         recordings: Some(dir.clone()),

@@ -294,6 +294,43 @@ fn has_control(text: &str) -> bool {
     text.chars().any(laparo_proto::text::needs_escape)
 }
 
+/// A server recording to a new directory `label` and offering the scenes of the
+/// directory `scenes`, and the file of a session of scene `scene` it recorded and
+/// closed.
+async fn record_scene_of(
+    label: &str,
+    scenes: &Path,
+    scene: &str,
+) -> (TestServer, Channel, PathBuf, String) {
+    let dir = recordings_dir(label);
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        scene_dir: Some(scenes.to_path_buf()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let info = sessions
+        .create_session(v1::CreateSessionRequest {
+            scene: scene.into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let recorded = info.recording_file.clone().unwrap();
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: info.session_id.clone(),
+            reason: "recorded".into(),
+        })
+        .await
+        .unwrap();
+    (server, ch, dir, recorded)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escapes() {
     // A scene whose name is terminal escapes: it reaches the recording's metadata.
@@ -305,33 +342,8 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
         "name = \"evil\\u001b]0;owned\\u0007\\u001b[2J\"",
     );
     std::fs::write(scenes.join("evil.toml"), toml).unwrap();
-    let dir = recordings_dir("escape");
-    let server = TestServer::start(ServeConfig {
-        recordings: Some(dir.clone()),
-        scene_dir: Some(scenes.clone()),
-        ..ServeConfig::default()
-    })
-    .await;
-    let ch = server.channel().await;
-    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
-    let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: evil.into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let recorded = info.recording_file.clone().unwrap();
+    let (server, ch, dir, recorded) = record_scene_of("escape", &scenes, evil).await;
     assert!(!has_control(&recorded));
-    sessions
-        .close_session(v1::CloseSessionRequest {
-            session_id: info.session_id.clone(),
-            reason: "recorded".into(),
-        })
-        .await
-        .unwrap();
 
     // Beside it: a link to a recording outside the directory, links to a device
     // and to a FIFO, a FIFO, a directory, and a file named with escapes.
@@ -462,4 +474,49 @@ async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
         "{status:?}"
     );
     server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_whose_mesh_is_gone_cannot_be_resimulated_and_says_so_without_server_paths() {
+    // A scene of a scene directory, reading its mesh from a file there.
+    let scenes = recordings_dir("resim-scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let toml = include_str!("../../server/scenes/default.toml")
+        .replace("name = \"default\"", "name = \"from-file\"")
+        .replace("builtin:liver.msh", "liver.msh");
+    std::fs::write(scenes.join("from-file.toml"), toml).unwrap();
+    std::fs::write(
+        scenes.join("liver.msh"),
+        include_bytes!("../../server/meshes/liver.msh"),
+    )
+    .unwrap();
+    let (server, ch, dir, recorded) = record_scene_of("resim-gone", &scenes, "from-file").await;
+    std::fs::remove_file(scenes.join("liver.msh")).unwrap();
+    let request = v1::ReplayRequest {
+        file: recorded.clone(),
+        speed: Some(100.0),
+        start_offset_s: None,
+        mode: v1::ReplayMode::Resimulate as i32,
+    };
+    let status = match tokio::time::timeout(WAIT, recordings(&ch).replay(request))
+        .await
+        .unwrap()
+    {
+        Err(status) => status,
+        Ok(stream) => end_of(stream.into_inner())
+            .await
+            .expect("the replay ends with an error"),
+    };
+    assert_eq!(status.code(), Code::FailedPrecondition, "{status:?}");
+    let message = status.message();
+    assert!(message.contains(&recorded), "{message}");
+    assert!(message.contains("liver.msh"), "{message}");
+    assert!(
+        !message.contains(&*scenes.to_string_lossy()) && !message.contains("/tmp"),
+        "{message}"
+    );
+    server.shutdown().await.unwrap();
+    for d in [&dir, &scenes] {
+        let _ = std::fs::remove_dir_all(d);
+    }
 }

@@ -10,23 +10,15 @@ use tonic::transport::Channel;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn roles_decide_who_may_do_what() {
-    let mut tokens = Tokens::default();
-    tokens.insert(
-        "instructor-token",
-        Caller {
-            name: "instructor".into(),
-            role: Role::Instructor,
-            instruments: None,
-        },
-    );
-    tokens.insert(
-        "trainee-left-token",
-        Caller {
-            name: "trainee".into(),
-            role: Role::Trainee,
-            instruments: Some(vec!["left".into()]),
-        },
-    );
+    let tokens = tokens(&[
+        ("instructor-token", "instructor", Role::Instructor, None),
+        (
+            "trainee-left-token",
+            "trainee",
+            Role::Trainee,
+            Some(&["left"]),
+        ),
+    ]);
     let server = TestServer::start(ServeConfig {
         tokens: Some(tokens),
         ..ServeConfig::default()

@@ -197,31 +197,7 @@ async fn bad_input_gets_a_clear_answer_and_harms_nothing() {
     assert_eq!(ended, Code::ResourceExhausted);
     // Poses far faster than the limit for longer than its stall window:
     // rate-limited, then the stream is closed.
-    let tx = a.tx.clone();
-    let sender = tokio::spawn(async move {
-        for k in 0..1_000_000u64 {
-            match tokio::time::timeout(WAIT, tx.send(pose("left", away, z, 100 + k))).await {
-                Ok(Ok(())) => {}
-                _ => return,
-            }
-        }
-    });
-    let closed = tokio::time::timeout(WAIT, async {
-        let mut limited = 0;
-        loop {
-            match a.rx.message().await {
-                Ok(Some(v1::ServerMessage {
-                    kind: Some(Kind::Error(e)),
-                })) if e.code == v1::ErrorCode::RateLimited as i32 => limited += 1,
-                Ok(Some(_)) => {}
-                Ok(None) => return (limited, Code::Ok),
-                Err(status) => return (limited, status.code()),
-            }
-        }
-    })
-    .await
-    .unwrap();
-    sender.abort();
+    let closed = flood_until_closed(&mut a, "left", away, 100, WAIT, WAIT).await;
     assert!(closed.0 > 0, "no pose was rate-limited");
     assert_eq!(closed.1, Code::ResourceExhausted);
     // Through all this, the session and the other station went on.

@@ -144,3 +144,11 @@ pub fn seconds(s: &str) -> Result<Duration, String> {
         Err(format!("{v} s: a duration must be > 0"))
     }
 }
+
+/// An idle timeout in seconds, within the range the server accepts: 0 (never) to
+/// 604800 (7 days).
+pub fn idle_seconds(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    laparo_server::session::idle_timeout(v)?;
+    Ok(v)
+}

@@ -63,6 +63,7 @@ pub async fn run(args: DemoArgs) -> Result<(), BoxError> {
         "demo: laparo-server in this process at {url}; session {} of the default scene (SOFA's liver at 0.19 m, E = 4.5 kPa)",
         session.session_id
     );
+    say!("demo: console {url}/ (open it in a browser to watch the session live)");
     say!(
         "demo: station with the left instrument and a 1 kHz force loop: tip press (0–4 s), then the shaft sideways (4–10 s)"
     );

@@ -94,6 +94,7 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
         })?
         .into_inner();
     header();
+    let shown = listed.recordings.len();
     for r in listed.recordings {
         let start = r
             .start
@@ -110,6 +111,13 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
             } else {
                 "complete"
             },
+        );
+    }
+    if listed.left_out > 0 {
+        say!(
+            "{} older recordings not listed (the server lists the newest {}); replay them by name",
+            listed.left_out,
+            shown
         );
     }
     Ok(())

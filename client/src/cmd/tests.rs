@@ -299,3 +299,93 @@ fn replay_plots_on_request() {
     let e = parse(&["replay", "r.mcap", "--plot-size", "800x450"]).unwrap_err();
     assert_eq!(e.kind(), ErrorKind::MissingRequiredArgument);
 }
+
+#[test]
+fn sessions_subcommands_parse_and_check_their_values() {
+    use super::sessions::SessionsCommand;
+    let url = "http://127.0.0.1:50051";
+    let cli = parse(&[
+        "sessions",
+        "create",
+        "--server",
+        url,
+        "--scene",
+        "liver-20k",
+        "--idle-timeout",
+        "0",
+        "--no-record",
+    ])
+    .unwrap();
+    let Command::Sessions(SessionsCommand::Create { create, .. }) = cli.command else {
+        panic!("not sessions create")
+    };
+    let request = create.request();
+    assert_eq!(request.scene, "liver-20k");
+    assert_eq!(request.idle_timeout_s, Some(0.0));
+    assert_eq!(request.record, Some(false));
+    let cli = parse(&["sessions", "create", "--server", url]).unwrap();
+    let Command::Sessions(SessionsCommand::Create { create, .. }) = cli.command else {
+        panic!("not sessions create")
+    };
+    // The server's defaults: its default scene, idle timeout and the scene's recording.
+    assert_eq!(create.request().scene, "");
+    assert_eq!(create.request().idle_timeout_s, None);
+    assert_eq!(create.request().record, None);
+    let cli = parse(&[
+        "sessions",
+        "evict",
+        "--server",
+        url,
+        "s1",
+        "7",
+        "--reason",
+        "hands off",
+    ])
+    .unwrap();
+    let Command::Sessions(SessionsCommand::Evict {
+        session,
+        station,
+        reason,
+        ..
+    }) = cli.command
+    else {
+        panic!("not sessions evict")
+    };
+    assert_eq!(
+        (session.as_str(), station, reason.as_str()),
+        ("s1", 7, "hands off")
+    );
+    for bad in [
+        &[
+            "sessions",
+            "create",
+            "--server",
+            url,
+            "--idle-timeout",
+            "604801",
+        ][..],
+        &[
+            "sessions",
+            "create",
+            "--server",
+            url,
+            "--idle-timeout",
+            "-1",
+        ],
+        &[
+            "sessions",
+            "create",
+            "--server",
+            url,
+            "--record",
+            "--no-record",
+        ],
+        &["sessions", "evict", "--server", url, "s1", "-3"],
+        &["sessions", "info", "--server", url],
+        &["sessions", "list"],
+    ] {
+        let e = parse(bad).unwrap_err();
+        assert_ne!(e.kind(), ErrorKind::DisplayHelp, "{bad:?}");
+        assert_eq!(e.exit_code(), 2, "{bad:?}");
+    }
+}

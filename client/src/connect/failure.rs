@@ -121,10 +121,34 @@ pub fn lost(status: &Status) -> Option<String> {
     .iter()
     .any(|w| text.contains(w))
     {
-        "the server closed the connection: did it stop?".into()
+        CLOSED.into()
     } else {
         format!("the connection failed: {}", error_chain(source))
     })
+}
+
+/// What [`lost`] says of a connection the server closed (or that broke).
+const CLOSED: &str = "the server closed the connection: did it stop?";
+
+/// [`lost`] for a stream that had heard nothing from the server for `silent`.
+///
+/// A keep-alive that timed out reaches the stream as a broken pipe, the same words
+/// as a server that closed its socket. A server that closes its socket is noticed
+/// at once, while one that stopped answering (stopped, hung, cut off) is noticed
+/// only when the keep-alive gives up, at least
+/// [`KEEPALIVE_INTERVAL`](super::KEEPALIVE_INTERVAL) after the last byte came; and
+/// the streams of a session carry a frame every tick. So a stream that broke after
+/// that long a silence was ended by the keep-alive.
+pub fn lost_after(status: &Status, silent: std::time::Duration) -> Option<String> {
+    let words = lost(status)?;
+    if silent >= super::KEEPALIVE_INTERVAL && words == CLOSED {
+        return Some(format!(
+            "the server stopped answering: nothing came for {:.0} s and a keep-alive ping \
+             got no reply",
+            silent.as_secs_f64()
+        ));
+    }
+    Some(words)
 }
 
 /// A status as words: [`lost`] for a transport failure, the server's code and

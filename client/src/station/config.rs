@@ -125,6 +125,17 @@ impl From<tonic::Status> for StationError {
     }
 }
 
+impl StationError {
+    /// The error of a stream that failed with `status` after hearing nothing from
+    /// the server for `silent` ([`crate::connect::failure::lost_after`]).
+    pub fn after_silence(status: tonic::Status, silent: std::time::Duration) -> Self {
+        match crate::connect::failure::lost_after(&status, silent) {
+            Some(words) => StationError::Lost(words),
+            None => status.into(),
+        }
+    }
+}
+
 fn check_rate(
     field: &'static str,
     value: f64,

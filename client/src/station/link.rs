@@ -1,6 +1,8 @@
 //! The `Station.Join` stream of one station: joining (the open message, then
 //! `Joined`), the server's messages one by one, and leaving.
 
+use std::time::Instant;
+
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::Streaming;
@@ -19,6 +21,8 @@ pub(crate) struct Link {
     incoming: Streaming<ServerMessage>,
     /// What the server answered the join with.
     pub joined: Joined,
+    /// When the server's last message came.
+    heard: Instant,
 }
 
 impl Link {
@@ -49,6 +53,7 @@ impl Link {
                     outgoing,
                     incoming,
                     joined,
+                    heard: Instant::now(),
                 })
             }
             Some(other) => Err(StationError::Protocol(format!(
@@ -65,7 +70,13 @@ impl Link {
     /// status it ended the stream with as [`StationError::Status`]. Cancel-safe: a
     /// message is never lost when the future is dropped unfinished.
     pub async fn next(&mut self) -> Result<Option<ServerMessage>, StationError> {
-        Ok(self.incoming.message().await?)
+        match self.incoming.message().await {
+            Ok(message) => {
+                self.heard = Instant::now();
+                Ok(message)
+            }
+            Err(status) => Err(StationError::after_silence(status, self.heard.elapsed())),
+        }
     }
 
     /// Sends `Leave` with `reason` and waits up to [`LEAVE_GRACE`] for the server to

@@ -1,3 +1,4 @@
 //! Writing simulation results to files other tools read.
 
+pub mod pvd;
 pub mod vtu;

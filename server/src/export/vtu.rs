@@ -1,31 +1,31 @@
 //! VTK XML unstructured grid (`.vtu`), the format ParaView opens.
 //!
-//! The deformed volume mesh is written as ASCII: points at their current positions
-//! (m), tetrahedra (VTK cell type 10), point data `displacement` (m, three
-//! components) and cell data `von_mises_stress` (Pa) and `region` (the tetrahedron's
-//! physical tag).
+//! The volume mesh is written as ASCII: points at their **rest** positions `X` (m),
+//! tetrahedra (VTK cell type 10), point data `displacement` `u = x − X` (m, three
+//! components) and cell data `von_mises_stress` (Pa, of the strain the scene's
+//! elastic model acts on: `sym ∇u` when linear, `sym(Rᵀ F) − I` when corotational)
+//! and `region` (the tetrahedron's physical tag). ParaView's Warp By Vector on
+//! `displacement` (scale 1) then draws the deformed shape `X + u`; a file that held
+//! the deformed points would be warped twice. The file says so in a comment.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
-use crate::engine::elastic::{shape_gradients, tet_displacements, von_mises_stress};
+use crate::engine::elastic::von_mises_of_strain;
 use crate::engine::simulation::Simulation;
 
 /// VTK's cell type for a linear tetrahedron.
 const VTK_TETRA: u8 = 10;
 
-/// Von Mises stress of every tetrahedron in the simulation's current state, Pa.
+/// Von Mises stress of every tetrahedron in the simulation's current state, Pa, by
+/// the scene's elastic model.
 pub fn tet_von_mises(sim: &Simulation) -> Vec<f64> {
     let model = &sim.model;
-    sim.mesh
-        .tets
-        .iter()
-        .enumerate()
-        .map(|(t, &tet)| {
-            let (g, _) = shape_gradients(&model.rest, tet);
-            let u = tet_displacements(&sim.state.x, &model.rest, tet);
-            von_mises_stress(&g, u, &model.materials[model.tet_material[t] as usize])
+    (0..sim.mesh.tets.len())
+        .map(|t| {
+            let eps = model.tet_strain(&sim.mesh.tets, &sim.state.x, t);
+            von_mises_of_strain(&eps, &model.materials[model.tet_material[t] as usize])
         })
         .collect()
 }
@@ -48,6 +48,10 @@ pub fn write_vtu_to(sim: &Simulation, w: &mut impl Write) -> io::Result<()> {
         w,
         r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
     )?;
+    writeln!(
+        w,
+        "  <!-- Points are rest positions; Warp By Vector with `displacement` (scale 1) draws the deformed shape. -->"
+    )?;
     writeln!(w, "  <UnstructuredGrid>")?;
     writeln!(
         w,
@@ -60,7 +64,7 @@ pub fn write_vtu_to(sim: &Simulation, w: &mut impl Write) -> io::Result<()> {
         w,
         r#"        <DataArray type="Float64" NumberOfComponents="3" format="ascii">"#
     )?;
-    for p in x {
+    for p in rest {
         writeln!(w, "{:e} {:e} {:e}", p.x, p.y, p.z)?;
     }
     writeln!(w, "        </DataArray>\n      </Points>\n      <Cells>")?;

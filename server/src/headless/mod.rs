@@ -45,7 +45,19 @@ pub fn run_scripted(
     sim: &mut Simulation,
     seconds: f64,
     script: Option<(&trajectory::Trajectory, &[Option<usize>])>,
+    progress: impl FnMut(&Simulation, &StepReport),
+) -> RunSummary {
+    run_observed(sim, seconds, script, progress, |_| true)
+}
+
+/// As [`run_scripted`], with `after_tick` called after every tick (outside the
+/// timing, e.g. to export a frame); the run stops early when it returns false.
+pub fn run_observed(
+    sim: &mut Simulation,
+    seconds: f64,
+    script: Option<(&trajectory::Trajectory, &[Option<usize>])>,
     mut progress: impl FnMut(&Simulation, &StepReport),
+    mut after_tick: impl FnMut(&Simulation) -> bool,
 ) -> RunSummary {
     let ticks = (seconds / sim.dt).round().max(1.0) as u64;
     let mut times = Vec::with_capacity(ticks as usize);
@@ -67,10 +79,14 @@ pub fn run_scripted(
         if k % every == 0 || k == ticks {
             progress(sim, &report);
         }
+        if !after_tick(sim) {
+            break;
+        }
     }
     let wall: Duration = times.iter().sum();
     times.sort_unstable();
     let at = |q: f64| times[((times.len() - 1) as f64 * q).round() as usize].as_secs_f64();
+    let ticks = times.len() as u64;
     RunSummary {
         ticks,
         sim_seconds: ticks as f64 * sim.dt,

@@ -30,6 +30,13 @@ use std::time::SystemTime;
 
 use super::reader::{ReadError, Recording};
 
+/// Most files a listing reads and answers: the most recently modified. A listing
+/// reads a few kilobytes to a few chunks of each file it has not seen (see the
+/// module documentation) and answers ~200 bytes a file, so 2,048 files bound a
+/// first listing's reading to seconds and its answer to well under the largest
+/// message the server sends; older files stay replayable by name.
+pub const MAX_LISTED_FILES: usize = 2048;
+
 /// How a recording's file ends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FileState {
@@ -163,16 +170,34 @@ impl Lister {
         Self::default()
     }
 
-    /// Every regular file of `dir` whose name ends in `.mcap` (and is UTF-8), oldest
-    /// recording first (by start time, then name), the files that cannot be read
-    /// last (by name).
+    /// Every regular file of `dir` whose name ends in `.mcap` (and is UTF-8), at
+    /// most the [`MAX_LISTED_FILES`] most recently modified, oldest recording first
+    /// (by start time, then name), the files that cannot be read last (by name).
     pub fn list(
         &self,
         dir: &Path,
         is_recording: impl Fn(&Path) -> bool,
     ) -> std::io::Result<Vec<Listed>> {
-        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-        let mut out = Vec::new();
+        let (listed, left_out) = self.list_at_most(dir, MAX_LISTED_FILES, is_recording)?;
+        if left_out > 0 {
+            tracing::warn!(
+                dir = %dir.display(),
+                "{left_out} older recordings not listed (at most {MAX_LISTED_FILES} are)"
+            );
+        }
+        Ok(listed)
+    }
+
+    /// [`Lister::list`] of at most the `max` most recently modified files, and how
+    /// many files were left out.
+    pub fn list_at_most(
+        &self,
+        dir: &Path,
+        max: usize,
+        is_recording: impl Fn(&Path) -> bool,
+    ) -> std::io::Result<(Vec<Listed>, usize)> {
+        // Names and metadata first (cheap): only the newest are read.
+        let mut candidates = Vec::new();
         for entry in std::fs::read_dir(dir)? {
             let entry = entry?;
             let Ok(file) = entry.file_name().into_string() else {
@@ -189,6 +214,21 @@ impl Lister {
             if !metadata.file_type().is_file() {
                 continue;
             }
+            candidates.push((file, path, metadata));
+        }
+        let left_out = candidates.len().saturating_sub(max);
+        if left_out > 0 {
+            candidates.sort_by(|a, b| {
+                b.2.modified()
+                    .ok()
+                    .cmp(&a.2.modified().ok())
+                    .then_with(|| a.0.cmp(&b.0))
+            });
+            candidates.truncate(max);
+        }
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        let mut out = Vec::new();
+        for (file, path, metadata) in candidates {
             let mut version = Version::of(&metadata);
             let mut bytes_read = 0;
             let mut read = |version: Version| match cache.get(&file) {
@@ -233,7 +273,7 @@ impl Lister {
             let key = |l: &Listed| l.entry.as_ref().map_or(u64::MAX, |e| e.start_unix_ns);
             key(a).cmp(&key(b)).then_with(|| a.file.cmp(&b.file))
         });
-        Ok(out)
+        Ok((out, left_out))
     }
 }
 

@@ -111,5 +111,3 @@ pub fn sim_log_time(start_ns: u64, sim_time: f64) -> u64 {
 
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_files;

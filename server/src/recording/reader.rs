@@ -593,19 +593,34 @@ impl Recording {
     /// other topics (`/foxglove/scene`, for viewers, and any this version does not
     /// know) are skipped undecoded; reading ends at the first error.
     pub fn messages(&self) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> + '_ {
-        self.raw().filter_map(move |m| {
+        Self::messages_of(self)
+    }
+
+    /// [`messages`](Self::messages) owning the recording: an iterator that can be
+    /// kept between reads (a replay reads in bursts, moving it to a blocking thread
+    /// for each).
+    pub fn into_messages(
+        self: std::sync::Arc<Self>,
+    ) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> + Send + 'static {
+        Self::messages_of(self)
+    }
+
+    fn messages_of<R: std::ops::Deref<Target = Recording> + Clone>(
+        this: R,
+    ) -> impl Iterator<Item = Result<Stamped<Recorded>, ReadError>> {
+        let decoder = this.clone();
+        Self::raw_of(this).filter_map(move |m| {
             let (topic, header, data) = match m {
                 Ok(m) => m,
                 Err(e) => return Some(Err(e)),
             };
+            let d = &*decoder;
             let decoded = match topic.as_str() {
-                TOPIC_SCENE => self.decode(&topic, &header, &data).map(Recorded::Scene),
-                TOPIC_POSES => self.decode(&topic, &header, &data).map(Recorded::Pose),
-                TOPIC_SURFACE => self.decode(&topic, &header, &data).map(Recorded::Surface),
-                TOPIC_INSTRUMENTS => self
-                    .decode(&topic, &header, &data)
-                    .map(Recorded::Instrument),
-                TOPIC_EVENTS => self.decode(&topic, &header, &data).map(Recorded::Event),
+                TOPIC_SCENE => d.decode(&topic, &header, &data).map(Recorded::Scene),
+                TOPIC_POSES => d.decode(&topic, &header, &data).map(Recorded::Pose),
+                TOPIC_SURFACE => d.decode(&topic, &header, &data).map(Recorded::Surface),
+                TOPIC_INSTRUMENTS => d.decode(&topic, &header, &data).map(Recorded::Instrument),
+                TOPIC_EVENTS => d.decode(&topic, &header, &data).map(Recorded::Event),
                 _ => return None,
             };
             Some(decoded.map(|message| Stamped {
@@ -643,7 +658,14 @@ impl Recording {
     fn raw(
         &self,
     ) -> impl Iterator<Item = Result<(String, MessageHeader, Vec<u8>), ReadError>> + '_ {
-        let mut topics = topics(&self.summary);
+        Self::raw_of(self)
+    }
+
+    /// [`raw`](Self::raw) of a recording held by `this` (a reference or an `Arc`).
+    fn raw_of<R: std::ops::Deref<Target = Recording>>(
+        this: R,
+    ) -> impl Iterator<Item = Result<(String, MessageHeader, Vec<u8>), ReadError>> {
+        let mut topics = topics(&this.summary);
         let mut at = MAGIC.len() as u64;
         let mut pending: VecDeque<Record<'static>> = VecDeque::new();
         let mut done = false;
@@ -653,16 +675,16 @@ impl Recording {
                     return None;
                 }
                 let Some(record) = pending.pop_front() else {
-                    let framed = match frame_at(&self.source, at, self.data_end) {
+                    let framed = match frame_at(&this.source, at, this.data_end) {
                         Ok(Some(f)) => f,
                         Ok(None) => return None,
                         Err(e) => {
                             done = true;
-                            return Some(Err(self.corrupt(e.to_string())));
+                            return Some(Err(this.corrupt(e.to_string())));
                         }
                     };
                     at = framed.end();
-                    let read = || read_record(&self.source, &framed);
+                    let read = || read_record(&this.source, &framed);
                     let records = match framed.op {
                         op::CHUNK => read().and_then(|r| match r {
                             Record::Chunk { header, data } => chunk_records(&header, &data),
@@ -679,7 +701,7 @@ impl Recording {
                         Ok(r) => pending.extend(r),
                         Err(e) => {
                             done = true;
-                            return Some(Err(self.corrupt(e)));
+                            return Some(Err(this.corrupt(e)));
                         }
                     }
                     continue;
@@ -691,7 +713,7 @@ impl Recording {
                     Record::Message { header, data } => {
                         let Some(topic) = topics.get(&header.channel_id) else {
                             done = true;
-                            return Some(Err(self.corrupt(format!(
+                            return Some(Err(this.corrupt(format!(
                                 "message {} is on channel {}, which the file does not define",
                                 header.sequence, header.channel_id
                             ))));

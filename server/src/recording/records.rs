@@ -7,14 +7,13 @@
 //! [`MAX_CHUNK_BYTES`], a chunk is decompressed whole and its CRC checked before
 //! any of its records is used, and each body is then parsed by the mcap crate.
 //!
-//! Two walks: [`Records`] over bytes in memory (recovery), and [`frame_at`] /
-//! [`read_record`] over a [`Source`], a record at a time, where a record's body is
-//! read only when the caller wants it (a listing skips the compressed data of
-//! every chunk but the few it needs).
+//! The walk: [`frame_at`] / [`read_record`] over a [`Source`], a record at a
+//! time, where a record's body is read only when the caller wants it (a listing
+//! skips the compressed data of every chunk but the few it needs; a recovery
+//! holds one chunk at a time).
 
 use std::borrow::Cow;
 
-use mcap::MAGIC;
 use mcap::records::{ChunkHeader, Record};
 
 use super::source::{Source, SourceError};
@@ -116,64 +115,6 @@ fn frame(buf: &[u8], at: usize) -> Result<Option<Split<'_>>, String> {
         .and_then(|n| rest.get(9..9usize.checked_add(n)?))
         .ok_or_else(|| format!("a record cut short at byte {at}"))?;
     Ok(Some((rest[0], body, at + 9 + body.len())))
-}
-
-/// The top-level records of a file, after its start magic: each with the offset
-/// just past it. Ends at the end of the bytes or at the first error.
-pub struct Records<'a> {
-    bytes: &'a [u8],
-    at: usize,
-    done: bool,
-}
-
-impl<'a> Records<'a> {
-    /// `bytes` is a whole file, starting with the MCAP magic (checked by the caller).
-    pub fn new(bytes: &'a [u8]) -> Self {
-        Records {
-            bytes,
-            at: MAGIC.len().min(bytes.len()),
-            done: false,
-        }
-    }
-
-    /// The records of `bytes` (a whole file) from offset `at` on, e.g. a chunk an
-    /// index points to; from an offset past the end there are none.
-    pub fn at(bytes: &'a [u8], at: usize) -> Self {
-        Records {
-            bytes,
-            at: at.min(bytes.len()),
-            done: false,
-        }
-    }
-
-    /// Where the next record starts.
-    pub fn position(&self) -> usize {
-        self.at
-    }
-}
-
-impl<'a> Iterator for Records<'a> {
-    type Item = Result<(usize, Record<'a>), String>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.done {
-            return None;
-        }
-        let result = match frame(self.bytes, self.at) {
-            Ok(None) => None,
-            Ok(Some((op, body, next))) => Some(
-                mcap::parse_record(op, body)
-                    .map(|r| (next, r))
-                    .map_err(|e| format!("a damaged record at byte {}: {e}", self.at)),
-            ),
-            Err(e) => Some(Err(e)),
-        };
-        match &result {
-            Some(Ok((next, _))) => self.at = *next,
-            _ => self.done = true,
-        }
-        result
-    }
 }
 
 /// The records of a chunk, all or none: decompressed within bounds, CRC checked.

@@ -15,11 +15,12 @@ use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
-use mcap::records::{Channel, MessageHeader, Metadata, Record};
+use mcap::records::Record;
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
 
 use super::METADATA_NAME;
-use super::records::{Records, chunk_records};
+use super::records::{chunk_records, frame_at, read_record};
+use super::source::{Follow, Source};
 
 /// What a recovery kept and left out.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -60,27 +61,14 @@ pub enum RecoverError {
     NothingToRecover { file: String, why: String },
 }
 
-/// One record worth keeping, owned.
-enum Kept {
-    Schema {
-        id: u16,
-        name: String,
-        encoding: String,
-        data: Vec<u8>,
-    },
-    Channel(Channel),
-    Message {
-        header: MessageHeader,
-        data: Vec<u8>,
-    },
-    Metadata(Metadata),
-}
-
 /// Rewrites the recording `input` into a complete one at `output` (which may be
 /// `input`: the new file is written beside it and renamed over it).
+///
+/// The input is read a record at a time through a [`Source`] and each kept record
+/// is written at once, so memory holds one chunk whatever the file's size.
 pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
     let file = input.display().to_string();
-    let bytes = std::fs::read(input).map_err(|source| RecoverError::Read {
+    let source = Source::open(input, Follow::Links).map_err(|source| RecoverError::Read {
         file: file.clone(),
         source,
     })?;
@@ -95,7 +83,7 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
     let result = (|| {
         let out = File::create(&part).map_err(|e| write_error(e.to_string()))?;
         let (recovery, out) =
-            recover_bytes(&file, &bytes, BufWriter::new(out)).map_err(|e| match e {
+            recover_source(&file, &source, BufWriter::new(out)).map_err(|e| match e {
                 RecoverError::Write { message, .. } => write_error(message),
                 e => e,
             })?;
@@ -118,93 +106,67 @@ pub fn recover_bytes<W: Write + Seek>(
     bytes: &[u8],
     out: W,
 ) -> Result<(Recovery, W), RecoverError> {
-    if !bytes.starts_with(MAGIC) {
+    recover_source(file, &Source::held(bytes.to_vec()), out)
+}
+
+/// Recovers the recording `source` (named `file` in errors) onto `out`; on an
+/// error `out` holds a partial file, which the caller discards.
+fn recover_source<W: Write + Seek>(
+    file: &str,
+    source: &Source,
+    out: W,
+) -> Result<(Recovery, W), RecoverError> {
+    let size = source.len().map_err(|source| RecoverError::Read {
+        file: file.into(),
+        source,
+    })?;
+    let magic_len = MAGIC.len() as u64;
+    let mut magic = [0u8; MAGIC.len()];
+    if size < magic_len || source.read_exact_at(0, &mut magic).is_err() || magic != MAGIC {
         return Err(RecoverError::NotMcap { file: file.into() });
     }
     let mut recovery = Recovery {
-        was_complete: bytes.len() >= 2 * MAGIC.len() && bytes.ends_with(MAGIC),
+        was_complete: size >= 2 * magic_len
+            && source.read_exact_at(size - magic_len, &mut magic).is_ok()
+            && magic == MAGIC,
+        bytes_kept: magic_len,
         ..Recovery::default()
     };
-    let (profile, kept) = scan(bytes, &mut recovery);
-    recovery.bytes_dropped = bytes.len() as u64 - recovery.bytes_kept;
-    let described = kept
-        .iter()
-        .any(|k| matches!(k, Kept::Metadata(m) if m.name == METADATA_NAME));
-    if !described {
-        return Err(RecoverError::NothingToRecover {
-            file: file.into(),
-            why: recovery
-                .stopped_at
-                .clone()
-                .unwrap_or_else(|| format!("its end at byte {}", bytes.len())),
-        });
-    }
     let write = |e: McapError| RecoverError::Write {
         file: file.into(),
         message: e.to_string(),
     };
-    let mut writer = WriteOptions::new()
-        .profile(profile)
-        .compression(Some(Compression::Zstd))
-        .compression_threads(0)
-        .create(out)
-        .map_err(write)?;
-    for k in kept {
-        match k {
-            Kept::Schema {
-                id,
-                name,
-                encoding,
-                data,
-            } => {
-                writer
-                    .add_schema_with_id(id, &name, &encoding, &data)
-                    .map_err(write)?;
-            }
-            Kept::Channel(c) => {
-                writer
-                    .add_channel_with_id(
-                        c.id,
-                        c.schema_id,
-                        &c.topic,
-                        &c.message_encoding,
-                        &c.metadata,
-                    )
-                    .map_err(write)?;
-            }
-            Kept::Message { header, data } => {
-                writer
-                    .write_to_known_channel(&header, &data)
-                    .map_err(write)?;
-                recovery.messages += 1;
-            }
-            Kept::Metadata(m) => writer.write_metadata(&m).map_err(write)?,
-        }
-    }
-    writer.finish().map_err(write)?;
-    Ok((recovery, writer.into_inner()))
-}
-
-/// Reads records until the data section ends or a record is cut short or
-/// damaged; returns the header's profile and what to keep.
-fn scan(bytes: &[u8], recovery: &mut Recovery) -> (String, Vec<Kept>) {
+    let mut out = Some(out);
+    let mut writer: Option<mcap::Writer<W>> = None;
     let mut profile = String::new();
-    let mut kept = Vec::new();
-    recovery.bytes_kept = MAGIC.len() as u64;
-    for record in Records::new(bytes) {
-        let (end, record) = match record {
+    let mut described = false;
+    let mut at = magic_len;
+    loop {
+        let framed = match frame_at(source, at, size) {
+            Ok(Some(f)) => f,
+            Ok(None) => break,
+            Err(e) => {
+                recovery.stopped_at = Some(format!("a record cut short at byte {at}: {e}"));
+                break;
+            }
+        };
+        let record = match read_record(source, &framed) {
             Ok(r) => r,
             Err(e) => {
                 recovery.stopped_at = Some(e);
                 break;
             }
         };
-        match record {
-            Record::Header(h) => profile = h.profile,
+        let end = framed.end();
+        let kept: Vec<Record<'static>> = match record {
+            Record::Header(h) => {
+                profile = h.profile;
+                Vec::new()
+            }
             Record::Chunk { header, data } => match chunk_records(&header, &data) {
                 Ok(records) => {
-                    kept.extend(records.into_iter().filter_map(keep));
                     recovery.chunks += 1;
+                    records
                 }
                 Err(e) => {
                     recovery.stopped_at = Some(format!("{e} (the chunk ending at byte {end})"));
@@ -212,31 +174,72 @@ fn scan(bytes: &[u8], recovery: &mut Recovery) -> (String, Vec<Kept>) {
                 }
             },
             Record::DataEnd(_) | Record::Footer(_) => {
-                recovery.bytes_kept = end as u64;
+                recovery.bytes_kept = end;
                 break;
             }
-            r => kept.extend(keep(r)),
+            r => vec![r],
+        };
+        for record in kept {
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(
+                    WriteOptions::new()
+                        .profile(profile.clone())
+                        .compression(Some(Compression::Zstd))
+                        .compression_threads(0)
+                        .create(out.take().expect("the output is taken once"))
+                        .map_err(write)?,
+                ),
+            };
+            described |= matches!(&record, Record::Metadata(m) if m.name == METADATA_NAME);
+            if keep(w, record).map_err(write)? {
+                recovery.messages += 1;
+            }
         }
-        recovery.bytes_kept = end as u64;
+        recovery.bytes_kept = end;
+        at = end;
     }
-    (profile, kept)
+    recovery.bytes_dropped = size - recovery.bytes_kept;
+    if !described {
+        return Err(RecoverError::NothingToRecover {
+            file: file.into(),
+            why: recovery
+                .stopped_at
+                .clone()
+                .unwrap_or_else(|| format!("its end at byte {size}")),
+        });
+    }
+    let mut writer = writer.expect("a metadata record was written");
+    writer.finish().map_err(write)?;
+    Ok((recovery, writer.into_inner()))
 }
 
-/// The records worth carrying over; indexes and statistics are written anew.
-fn keep(record: Record<'_>) -> Option<Kept> {
+/// Writes the records worth carrying over (schemas, channels with their ids,
+/// messages, metadata); indexes and statistics are written anew. True for a
+/// message.
+fn keep<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    record: Record<'_>,
+) -> Result<bool, McapError> {
     match record {
-        Record::Schema { header, data } => Some(Kept::Schema {
-            id: header.id,
-            name: header.name,
-            encoding: header.encoding,
-            data: data.into_owned(),
-        }),
-        Record::Channel(c) => Some(Kept::Channel(c)),
-        Record::Message { header, data } => Some(Kept::Message {
-            header,
-            data: data.into_owned(),
-        }),
-        Record::Metadata(m) => Some(Kept::Metadata(m)),
-        _ => None,
+        Record::Schema { header, data } => {
+            writer.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
+        }
+        Record::Channel(c) => {
+            writer.add_channel_with_id(
+                c.id,
+                c.schema_id,
+                &c.topic,
+                &c.message_encoding,
+                &c.metadata,
+            )?;
+        }
+        Record::Message { header, data } => {
+            writer.write_to_known_channel(&header, &data)?;
+            return Ok(true);
+        }
+        Record::Metadata(m) => writer.write_metadata(&m)?,
+        _ => {}
     }
+    Ok(false)
 }

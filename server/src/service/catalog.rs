@@ -1,8 +1,9 @@
 //! The scenes a server offers: the embedded default and the `.toml` files of a
 //! directory, and the files of that directory it cannot offer, with why.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use laparo_proto::v1;
 
@@ -27,9 +28,35 @@ pub struct SceneCatalog {
     /// parse (regular files of at most `MAX_SCENE_BYTES`, inside the directory), or
     /// repeat a name already offered. `ListScenes` reports them beside the scenes.
     pub unavailable: Vec<v1::SceneProblem>,
+    /// Each scene's description once built, or why it does not build: scenes do
+    /// not change while the server runs, and describing one builds its mesh (a
+    /// second or more for a large liver), so `ListScenes` and `GetScene` build each
+    /// scene at most once.
+    described: Mutex<HashMap<String, Arc<Described>>>,
 }
 
+/// A scene's description, built once.
+type Described = OnceLock<Result<v1::SceneDescription, String>>;
+
 impl SceneCatalog {
+    /// The description of scene `name` (`None`: no such scene), built by
+    /// `describe` on the first call; concurrent first callers wait for one build.
+    pub fn described(
+        &self,
+        name: &str,
+        describe: impl FnOnce(&Scene) -> Result<v1::SceneDescription, String>,
+    ) -> Option<Result<v1::SceneDescription, String>> {
+        let scene = self.scenes.get(name)?;
+        let cell = self
+            .described
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(name.to_string())
+            .or_default()
+            .clone();
+        Some(cell.get_or_init(|| describe(scene)).clone())
+    }
+
     /// The default scene, and every `*.toml` in `dir`, in file-name order. A file that
     /// does not load is left out, logged and kept in [`unavailable`](Self::unavailable),
     /// so that one broken file neither hides the others nor stops the server; a name
@@ -80,5 +107,31 @@ impl SceneCatalog {
             catalog.unavailable.push(problem);
         }
         Ok(catalog)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    #[test]
+    fn a_scene_is_described_once_however_often_it_is_asked() {
+        let catalog = SceneCatalog::load(None).unwrap();
+        let name = Scene::default_scene().name;
+        let builds = AtomicUsize::new(0);
+        let describe = |scene: &Scene| {
+            builds.fetch_add(1, Ordering::Relaxed);
+            let sim = scene.build().map_err(|e| e.to_string())?;
+            Ok(crate::frame::description::description(scene, &sim))
+        };
+        let first = catalog.described(&name, describe).unwrap().unwrap();
+        let again = catalog.described(&name, describe).unwrap().unwrap();
+        assert_eq!(first, again);
+        assert!(!first.rest_surface.as_ref().unwrap().positions.is_empty());
+        assert_eq!(builds.load(Ordering::Relaxed), 1);
+        assert!(catalog.described("no-such-scene", describe).is_none());
+        assert_eq!(builds.load(Ordering::Relaxed), 1);
     }
 }

@@ -3,17 +3,31 @@
 //! and the standard health service, so that grpcurl, grpcui and clients in other
 //! languages work without our code.
 //!
+//! The same port serves the browser console ([`crate::console`]): HTTP/1.1 is
+//! accepted, gRPC-web is translated to gRPC, cross-origin calls are refused
+//! unless `cors_origins` allows them, and only the console's static assets are
+//! served without a token.
+//!
 //! Every service runs the [`auth::Authenticate`] interceptor, and answers a request
 //! it cannot read with the contract's codes ([`decode_status`]). The server refuses to
 //! listen on a non-loopback address unless it has both TLS and tokens, or is told
 //! `insecure`. On shutdown every session closes: open streams end with
-//! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns.
+//! `UNAVAILABLE` and the reason, mechanics threads stop, then the server returns,
+//! within [`shutdown::SHUTDOWN_BOUND`] whatever the clients do.
+//!
+//! What the server takes on at once is limited ([`capacity`]: sessions,
+//! connections, replays); its connections are accepted by its own loop
+//! ([`connections`]: counted, closed when idle, severed at shutdown).
 
+pub mod attach;
 pub mod auth;
+pub mod capacity;
 pub mod catalog;
+pub mod connections;
 pub mod decode_status;
 pub mod join_rate;
 pub mod limits;
+pub mod liveness;
 pub mod observe;
 pub mod read_status;
 pub mod recordings;
@@ -21,6 +35,7 @@ pub mod registry;
 pub mod replay;
 pub mod scenes;
 pub mod sessions;
+pub mod shutdown;
 pub mod station;
 pub mod stream;
 
@@ -33,13 +48,14 @@ use std::time::Duration;
 use laparo_proto::v1;
 use thiserror::Error;
 use tokio::net::TcpListener;
-use tokio_stream::wrappers::TcpListenerStream;
+use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::{Identity, Server, ServerTlsConfig};
 
 pub use auth::{Caller, Role, TokenListError, Tokens, TokensError};
 pub use catalog::{CatalogError, SceneCatalog};
 use decode_status::ContractStatus;
+pub use liveness::StationTimeout;
 pub use registry::Registry;
 pub use station::PoseLimits;
 
@@ -68,11 +84,22 @@ pub struct ServeConfig {
     /// Default idle timeout of sessions; `None`: never.
     pub idle_timeout: Option<Duration>,
     pub pose_limits: PoseLimits,
+    /// How long a station may send nothing, or take nothing, before it loses its
+    /// instruments ([`liveness`]).
+    pub station_timeout: StationTimeout,
     /// Listen on a non-loopback address without TLS and tokens anyway.
     pub insecure: bool,
     /// Directory sessions are recorded in (created if missing); `None`: no
     /// recording.
     pub recordings: Option<PathBuf>,
+    /// Sessions, connections and replays at once (default: derived from the machine).
+    pub capacity: capacity::Capacity,
+    /// A connection with no open stream this long is closed; `None`:
+    /// [`connections::DEFAULT_IDLE_CONNECTION`].
+    pub idle_connection: Option<Duration>,
+    /// Origins whose pages may call the server (CORS); empty: none but the
+    /// server's own (the console it serves).
+    pub cors_origins: Vec<String>,
 }
 
 #[derive(Debug, Error)]
@@ -91,6 +118,8 @@ pub enum ServeError {
     Io(#[from] std::io::Error),
     #[error("transport: {0}")]
     Transport(#[from] tonic::transport::Error),
+    #[error("{0}")]
+    Cors(#[from] crate::console::CorsError),
 }
 
 /// Serves the contract on `listener` until `shutdown` resolves, then closes every
@@ -105,6 +134,11 @@ pub async fn serve(
     if !addr.ip().is_loopback() && !secured && !config.insecure {
         return Err(ServeError::Insecure(addr));
     }
+    let origins = config
+        .cors_origins
+        .iter()
+        .map(|o| crate::console::parse_origin(o))
+        .collect::<Result<Vec<_>, _>>()?;
     let catalog = SceneCatalog::load(config.scene_dir.as_deref())?;
     if let Some(dir) = &config.recordings
         && let Err(e) = std::fs::create_dir_all(dir)
@@ -112,11 +146,10 @@ pub async fn serve(
         // Sessions still run; each reports that it cannot record.
         tracing::warn!(dir = %dir.display(), "cannot create the recordings directory: {e}");
     }
-    let registry = Arc::new(Registry::new(
-        catalog,
-        config.idle_timeout,
-        config.recordings.clone(),
-    ));
+    let registry = Arc::new(
+        Registry::new(catalog, config.idle_timeout, config.recordings.clone())
+            .with_capacity(config.capacity),
+    );
     let auth = auth::Authenticate::new(config.tokens.clone());
 
     let reflection_v1 = tonic_reflection::server::Builder::configure()
@@ -156,6 +189,8 @@ pub async fn serve(
         station::StationService {
             registry: registry.clone(),
             limits: config.pose_limits,
+            timeout: config.station_timeout,
+            attachments: Default::default(),
         }
     );
     let observe = service!(
@@ -183,7 +218,17 @@ pub async fn serve(
             .await;
     }
 
-    let mut builder = Server::builder();
+    let limits = connections::ConnectionLimits {
+        max: config.capacity.connections,
+        idle: config
+            .idle_connection
+            .unwrap_or(connections::DEFAULT_IDLE_CONNECTION),
+        keepalive_interval: connections::DEFAULT_KEEPALIVE_INTERVAL,
+        keepalive_timeout: connections::DEFAULT_KEEPALIVE_TIMEOUT,
+    };
+    let mut builder = Server::builder()
+        .http2_keepalive_interval(Some(limits.keepalive_interval))
+        .http2_keepalive_timeout(Some(limits.keepalive_timeout));
     if let Some(tls) = &config.tls {
         let read = |p: &PathBuf| {
             std::fs::read(p).map_err(|e| ServeError::Tls(format!("{}: {e}", p.display())))
@@ -193,9 +238,19 @@ pub async fn serve(
             .tls_config(ServerTlsConfig::new().identity(identity))
             .map_err(|e| ServeError::Tls(e.to_string()))?;
     }
-    tracing::info!(%addr, tls = config.tls.is_some(), tokens = config.tokens.is_some(), "serving laparo.v1");
-    let closing = registry.clone();
-    builder
+    tracing::info!(
+        %addr,
+        tls = config.tls.is_some(),
+        tokens = config.tokens.is_some(),
+        sessions = config.capacity.sessions,
+        connections = config.capacity.connections,
+        replays = config.capacity.replays,
+        "serving laparo.v1"
+    );
+    let severance = connections::Severance::default();
+    let incoming = connections::incoming(listener, limits, Default::default(), severance.clone());
+    let mut routes = Routes::builder();
+    routes
         .add_service(health)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
@@ -203,12 +258,27 @@ pub async fn serve(
         .add_service(sessions)
         .add_service(station)
         .add_service(observe)
-        .add_service(recordings)
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async move {
-            shutdown.await;
-            tracing::info!("shutting down: closing every session");
-            tokio::task::block_in_place(|| closing.close_all("server shutting down"));
-        })
+        .add_service(recordings);
+    // gRPC-web translated to gRPC for the services (the browser console's calls);
+    // the console's static assets answer what no service does (outside the
+    // translation, which refuses any other HTTP/1.1 request).
+    let routes = Routes::from(
+        routes
+            .routes()
+            .into_axum_router()
+            .route_layer(tonic_web::GrpcWebLayer::new())
+            .fallback(crate::console::asset),
+    );
+    // HTTP/1.1 too: gRPC-web from a browser.
+    builder
+        .accept_http1(true)
+        .layer(connections::CountStreamsLayer)
+        .layer(crate::console::cors_layer(origins))
+        .add_routes(routes)
+        .serve_with_incoming_shutdown(
+            incoming,
+            shutdown::on_signal(shutdown, registry.clone(), severance),
+        )
         .await?;
     Ok(())
 }

@@ -28,7 +28,10 @@
 //! `t` sent `(t − start_offset_s) / speed` after the stream starts (deadlines
 //! counted from one start instant, so nothing drifts). Nothing is skipped: a client
 //! slower than the pace slows its own replay down, and the file's bounded read-ahead
-//! ([`READ_AHEAD`]) keeps the reading thread waiting for it. From an offset, the
+//! ([`READ_AHEAD`]) keeps the reading waiting for it, without a thread: the file is
+//! read in short bursts on the blocking pool ([`super::replay::feed`]). At most
+//! [`super::capacity::Capacity::replays`] replays stream at once; one more is
+//! answered `RESOURCE_EXHAUSTED`. From an offset, the
 //! newest tick at or before it (its surface and instrument states, and the events
 //! stamped at the offset) goes first, at once, so that a viewer shows the liver as it
 //! was there; earlier ticks and events are not sent. The stream ends with the
@@ -48,7 +51,7 @@ use tonic::{Request, Response, Status};
 use super::auth::{Caller, Role, caller};
 use super::read_status::read_status;
 use super::registry::Registry;
-use super::replay::{pace, read_recorded, read_resimulated};
+use super::replay::{ReadRecorded, ReadResimulated, feed, pace};
 use super::stream::OUTBOUND;
 use crate::recording::list::{self, FileState};
 use crate::recording::{ReadError, Recording};
@@ -64,7 +67,7 @@ pub struct RecordingsService {
 pub const MAX_SPEED: f64 = 100.0;
 /// Slowest replay, times real time: a minute of session in under two hours.
 pub const MIN_SPEED: f64 = 0.01;
-/// Decoded messages the reading thread may be ahead of the stream by.
+/// Decoded messages the reading may be ahead of the stream by.
 pub const READ_AHEAD: usize = 32;
 
 /// How a recording is played back (`ReplayRequest.mode`), decided in one place.
@@ -260,7 +263,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let lister = self.lister.clone();
         let listed = blocking(move || {
             lister
-                .list(&dir, |p| registry.is_recording(p))
+                .list_at_most(&dir, list::MAX_LISTED_FILES, |p| registry.is_recording(p))
                 .map_err(|e| {
                     tracing::warn!(dir = %dir.display(), "cannot read the recordings directory: {e}");
                     // Not the directory's path: clients know no server paths.
@@ -270,6 +273,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 })
         })
         .await?;
+        let (listed, left_out) = listed;
         let mut recordings = Vec::new();
         for l in listed {
             if l.file.chars().any(needs_escape) {
@@ -284,7 +288,10 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 }
             }
         }
-        Ok(Response::new(v1::ListRecordingsResponse { recordings }))
+        Ok(Response::new(v1::ListRecordingsResponse {
+            recordings,
+            left_out: u32::try_from(left_out).unwrap_or(u32::MAX),
+        }))
     }
 
     async fn replay(
@@ -297,11 +304,10 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let name = file_name(&r.file)?.to_string();
         let speed = speed(r.speed)?;
         let offset = start_offset(r.start_offset_s)?;
-        let read = match Playback::from_request(r.mode)? {
-            Playback::Recorded => read_recorded,
-            Playback::Resimulate => read_resimulated,
-        };
+        let playback = Playback::from_request(r.mode)?;
         let dir = self.dir()?;
+        // Held by the pacing task until the stream ends.
+        let slot = self.registry.replays.take()?;
         let registry = self.registry.clone();
         let opened = {
             let name = name.clone();
@@ -312,10 +318,21 @@ impl v1::recordings_server::Recordings for RecordingsService {
             kind: Some(v1::observe_message::Kind::Scene(opened.scene)),
         };
         let _ = tx.try_send(Ok(scene));
-        let (feed_tx, feed) = mpsc::channel(READ_AHEAD);
-        let recording = opened.recording;
-        tokio::task::spawn_blocking(move || read(recording, &name, offset, feed_tx));
-        tokio::spawn(pace(feed, tx, speed, self.registry.shutting_down()));
+        let (feed_tx, feed_rx) = mpsc::channel(READ_AHEAD);
+        let recording = Arc::new(opened.recording);
+        match playback {
+            Playback::Recorded => {
+                tokio::spawn(feed(ReadRecorded::new(recording, name, offset), feed_tx))
+            }
+            Playback::Resimulate => {
+                tokio::spawn(feed(ReadResimulated::new(recording, name, offset), feed_tx))
+            }
+        };
+        let shutdown = self.registry.shutting_down();
+        tokio::spawn(async move {
+            pace(feed_rx, tx, speed, shutdown).await;
+            drop(slot);
+        });
         Ok(Response::new(ReceiverStream::new(rx)))
     }
 }

@@ -2,7 +2,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::Duration;
 
@@ -10,9 +10,19 @@ use laparo_proto::text::printable;
 use tokio::sync::watch;
 use tonic::Status;
 
+use super::capacity::{Capacity, ReplaySlots, too_many_sessions};
 use super::catalog::SceneCatalog;
 use crate::recording::Recorder;
 use crate::session::{Closing, Session, SessionConfig, SessionError};
+
+/// A session being started, counted until it is in the map (or failed).
+struct Starting<'a>(&'a AtomicUsize);
+
+impl Drop for Starting<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
+}
 
 /// Every session of the server.
 pub struct Registry {
@@ -29,6 +39,12 @@ pub struct Registry {
     shutdown: Closing,
     /// How often each caller may join a station.
     pub joins: super::join_rate::JoinRate,
+    /// Most sessions open at once.
+    max_sessions: usize,
+    /// Sessions being started, counted against [`Registry::max_sessions`].
+    starting: AtomicUsize,
+    /// The replays streaming now, and their limit.
+    pub replays: ReplaySlots,
 }
 
 impl Registry {
@@ -46,7 +62,28 @@ impl Registry {
             recorders: Mutex::new(Vec::new()),
             shutdown: Closing::new(),
             joins: Default::default(),
+            max_sessions: usize::MAX,
+            starting: AtomicUsize::new(0),
+            replays: ReplaySlots::new(usize::MAX >> 4),
         }
+    }
+
+    /// These limits on sessions and replays (by default a registry has none).
+    pub fn with_capacity(mut self, capacity: Capacity) -> Self {
+        self.max_sessions = capacity.sessions;
+        self.replays = ReplaySlots::new(capacity.replays);
+        self
+    }
+
+    /// Counts a session about to start against the limit, or refuses it.
+    fn reserve(&self) -> Result<Starting<'_>, Status> {
+        let mut map = self.map();
+        map.retain(|_, s| !s.is_closed());
+        if map.len() + self.starting.load(Ordering::Acquire) >= self.max_sessions {
+            return Err(too_many_sessions(self.max_sessions));
+        }
+        self.starting.fetch_add(1, Ordering::AcqRel);
+        Ok(Starting(&self.starting))
     }
 
     /// The recorders still writing, forgetting the others.
@@ -93,6 +130,7 @@ impl Registry {
             .get(name)
             .ok_or_else(|| Status::not_found(format!("no scene `{}`", printable(name))))?
             .clone();
+        let reserved = self.reserve()?;
         let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
         let record = record.unwrap_or(scene.recording.enabled);
         let config = SessionConfig {
@@ -118,6 +156,7 @@ impl Registry {
             recorders.push(recorder);
         }
         self.map().insert(id, session.clone());
+        drop(reserved);
         tracing::info!(session = %session.id, scene = name, "session created");
         Ok(session)
     }

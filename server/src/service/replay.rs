@@ -1,20 +1,22 @@
-//! A recording played back as an observe stream: a reading thread feeds timed
-//! messages through a bounded channel, and [`pace`] sends each at its simulated
-//! time divided by the speed.
+//! A recording played back as an observe stream: a [`Reader`] reads timed messages
+//! in short bursts on the blocking pool, [`feed`] passes them through a bounded
+//! channel without holding a thread, and [`pace`] sends each at its simulated time
+//! divided by the speed.
 //!
 //! Two feeds, one per [`super::recordings::Playback`]:
-//! - [`read_recorded`]: the frames, instrument states and events as recorded;
-//! - [`read_resimulated`]: the recorded poses through a fresh build of the recorded
+//! - [`ReadRecorded`]: the frames, instrument states and events as recorded;
+//! - [`ReadResimulated`]: the recorded poses through a fresh build of the recorded
 //!   scene ([`crate::recording::Resimulation`]), sending the new frames and
 //!   instrument states, the contact events they give, and the recorded events that
 //!   do not come from the physics (stations joining and leaving, rejected input,
 //!   the recorder's reports). Each tick's messages are made by
 //!   [`crate::frame::TickOutputs`], as the live session made them, and sent in the
 //!   order the session wrote them. With the same build and scene it sends what
-//!   `read_recorded` sends; with another it shows what would have happened.
+//!   `ReadRecorded` sends; with another it shows what would have happened.
 //!
 //! Both start at an offset the same way ([`FromOffset`]).
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use laparo_proto::v1;
@@ -24,7 +26,8 @@ use tonic::Status;
 
 use super::read_status::read_status;
 use super::stream::{Item, Wrap};
-use crate::recording::{Recorded, Recording, ResimError, Resimulation};
+use crate::recording::reader::Stamped;
+use crate::recording::{ReadError, Recorded, Recording, ResimError, Resimulation};
 use crate::session::closing::closed;
 
 /// A message to send at `at_s` of simulated time after the replay's start offset.
@@ -33,23 +36,74 @@ pub struct Timed {
     pub message: v1::ObserveMessage,
 }
 
-/// Where a feed sends: `false` once the stream is gone.
+/// Messages a reader read in one burst, to be sent before the next.
+type Burst = Vec<Result<Timed, Status>>;
+
+/// Where a reader puts what it reads.
 struct Feed<'a> {
-    feed: &'a mpsc::Sender<Result<Timed, Status>>,
+    out: &'a mut Burst,
 }
 
 impl Feed<'_> {
-    fn send(&self, at_s: f64, item: Item) -> bool {
-        match v1::ObserveMessage::wrap(item) {
-            Some(message) => self.feed.blocking_send(Ok(Timed { at_s, message })).is_ok(),
-            None => true,
+    fn send(&mut self, at_s: f64, item: Item) -> bool {
+        if let Some(message) = v1::ObserveMessage::wrap(item) {
+            self.out.push(Ok(Timed { at_s, message }));
         }
+        true
     }
 
-    fn fail(&self, status: Status) {
-        let _ = self.feed.blocking_send(Err(status));
+    fn fail(&mut self, status: Status) {
+        self.out.push(Err(status));
     }
 }
+
+/// Messages read in one burst: a few ticks of a recording (each tick is a surface
+/// frame and the instruments' states), so that a burst holds its blocking thread
+/// for a fraction of a millisecond to a few milliseconds (a re-simulated tick is
+/// a mechanics step) and its memory stays a few frames.
+pub const BURST_MESSAGES: usize = 16;
+
+/// A replay's reading, done in bursts on the blocking pool ([`feed`]).
+pub trait Reader: Send + 'static {
+    /// Reads the next messages into `out` (about [`BURST_MESSAGES`]; a re-simulated
+    /// tick goes in whole); `false` once the recording is read (or failed, the
+    /// failure last in `out`).
+    fn read(&mut self, out: &mut Burst) -> bool;
+}
+
+/// Reads `reader` onto `feed` in bursts: each burst on a blocking thread, then
+/// its messages sent without one, waiting for the paced stream as long as it
+/// takes. A slow replay therefore holds no thread while its client is paced, and
+/// any number of them leave the blocking pool to listing and other replays. Ends
+/// when the reader does or the stream is gone.
+pub async fn feed(mut reader: impl Reader, feed: mpsc::Sender<Result<Timed, Status>>) {
+    loop {
+        if feed.is_closed() {
+            return;
+        }
+        let burst = tokio::task::spawn_blocking(move || {
+            let mut out = Vec::with_capacity(BURST_MESSAGES);
+            let more = reader.read(&mut out);
+            (reader, out, more)
+        })
+        .await;
+        let Ok((back, out, more)) = burst else {
+            return;
+        };
+        for m in out {
+            if feed.send(m).await.is_err() {
+                return;
+            }
+        }
+        if !more {
+            return;
+        }
+        reader = back;
+    }
+}
+
+/// The messages of a recording, owned (kept between bursts).
+type Messages = Box<dyn Iterator<Item = Result<Stamped<Recorded>, ReadError>> + Send>;
 
 /// What comes before a replay's start offset is held back: of it, only the newest
 /// tick at or before the offset (its surface and instrument states) and the events
@@ -74,8 +128,8 @@ impl FromOffset {
         }
     }
 
-    /// Takes the message of simulated time `t`; `false` once the stream is gone.
-    fn pass(&mut self, t: f64, item: Item, out: &Feed) -> bool {
+    /// Takes the message of simulated time `t`.
+    fn pass(&mut self, t: f64, item: Item, out: &mut Feed) -> bool {
         if self.before {
             if t <= self.offset {
                 match &item {
@@ -99,39 +153,55 @@ impl FromOffset {
     }
 
     /// Sends what is still held (a recording that ended at or before the offset).
-    fn flush(&mut self, out: &Feed) -> bool {
+    fn flush(&mut self, out: &mut Feed) -> bool {
         self.held.drain(..).all(|item| out.send(0.0, item))
     }
 }
 
 /// The recording's frames, instrument states and events from `offset` on, decoded
-/// one at a time onto `feed` (bounded: this waits for the stream), until the file
-/// ends, a message does not read (the stream then ends with its status) or the
-/// stream is gone. Runs on a blocking thread.
-pub fn read_recorded(
-    recording: Recording,
-    name: &str,
-    offset: f64,
-    feed: mpsc::Sender<Result<Timed, Status>>,
-) {
-    let out = Feed { feed: &feed };
-    let mut gate = FromOffset::new(offset);
-    for m in recording.messages() {
-        let m = match m {
-            Ok(m) => m,
-            Err(e) => return out.fail(read_status(name, &e)),
-        };
-        let (t, item) = match m.message {
-            Recorded::Scene(_) | Recorded::Pose(_) => continue,
-            Recorded::Surface(f) => (f.sim_time_s, Item::Surface(f)),
-            Recorded::Instrument(s) => (s.sim_time_s, Item::State(s)),
-            Recorded::Event(e) => (e.sim_time_s, Item::Event(e)),
-        };
-        if !gate.pass(t, item, &out) {
-            return;
+/// a burst at a time, until the file ends or a message does not read (the stream
+/// then ends with its status).
+pub struct ReadRecorded {
+    messages: Messages,
+    gate: FromOffset,
+    name: String,
+}
+
+impl ReadRecorded {
+    pub fn new(recording: Arc<Recording>, name: String, offset: f64) -> Self {
+        ReadRecorded {
+            messages: Box::new(recording.into_messages()),
+            gate: FromOffset::new(offset),
+            name,
         }
     }
-    gate.flush(&out);
+}
+
+impl Reader for ReadRecorded {
+    fn read(&mut self, burst: &mut Burst) -> bool {
+        let mut out = Feed { out: burst };
+        while out.out.len() < BURST_MESSAGES {
+            let Some(m) = self.messages.next() else {
+                self.gate.flush(&mut out);
+                return false;
+            };
+            let m = match m {
+                Ok(m) => m,
+                Err(e) => {
+                    out.fail(read_status(&self.name, &e));
+                    return false;
+                }
+            };
+            let (t, item) = match m.message {
+                Recorded::Scene(_) | Recorded::Pose(_) => continue,
+                Recorded::Surface(f) => (f.sim_time_s, Item::Surface(f)),
+                Recorded::Instrument(s) => (s.sim_time_s, Item::State(s)),
+                Recorded::Event(e) => (e.sim_time_s, Item::Event(e)),
+            };
+            self.gate.pass(t, item, &mut out);
+        }
+        true
+    }
 }
 
 /// Whether a recorded event came from the physics (and is derived again by a
@@ -140,62 +210,101 @@ fn from_physics(e: &v1::Event) -> bool {
     e.kind == v1::EventKind::ContactBegan as i32 || e.kind == v1::EventKind::ContactEnded as i32
 }
 
-/// The recording re-simulated (see the module documentation) from `offset` on, onto
-/// `feed` as [`read_recorded`] does. Every tick before the offset is simulated too
-/// (the physics needs them) but not sent. A scene that no longer builds or a mesh
-/// that is not the recorded one ends the stream with `FAILED_PRECONDITION`.
-pub fn read_resimulated(
-    recording: Recording,
-    name: &str,
-    offset: f64,
-    feed: mpsc::Sender<Result<Timed, Status>>,
-) {
-    let out = Feed { feed: &feed };
-    let cannot = |e: ResimError| {
-        Status::failed_precondition(format!("`{name}` cannot be re-simulated: {e}"))
-    };
-    let mut run = match Resimulation::new(&recording, recording.meta(), None) {
-        Ok(run) => run,
-        Err(e) => return out.fail(cannot(e)),
-    };
-    let mut gate = FromOffset::new(offset);
-    for m in recording.messages() {
-        let m = match m {
-            Ok(m) => m,
-            Err(e) => return out.fail(read_status(name, &e)),
-        };
-        let tick = match m.message {
-            Recorded::Event(e) if !from_physics(&e) => {
-                if !gate.pass(e.sim_time_s, Item::Event(e), &out) {
-                    return;
-                }
-                continue;
-            }
-            Recorded::Surface(f) => f.tick,
-            _ => continue,
-        };
-        let sent = run.run_to(tick, |stepped| {
-            // The order a session writes a tick in: its contact events, then the
-            // surface and every instrument's state.
-            let frame = stepped.frame;
-            let t = frame.sim_time;
-            let surface = v1::SurfaceFrame {
-                tick: frame.tick,
-                sim_time_s: frame.sim_time,
-                positions: frame.surface,
-            };
-            let mut items = (stepped.events.into_iter().map(Item::Event))
-                .chain([Item::Surface(surface)])
-                .chain(frame.instruments.into_iter().map(Item::State));
-            items.all(|item| gate.pass(t, item, &out))
-        });
-        match sent {
-            Ok(true) => {}
-            Ok(false) => return,
-            Err(e) => return out.fail(cannot(e)),
+/// The recording re-simulated (see the module documentation) from `offset` on, a
+/// burst at a time as [`ReadRecorded`] reads. Every tick before the offset is
+/// simulated too (the physics needs them) but not sent. A scene that no longer
+/// builds or a mesh that is not the recorded one ends the stream with
+/// `FAILED_PRECONDITION`. The scene is built in the first burst.
+pub struct ReadResimulated {
+    recording: Arc<Recording>,
+    run: Option<Resimulation>,
+    messages: Messages,
+    gate: FromOffset,
+    name: String,
+}
+
+impl ReadResimulated {
+    pub fn new(recording: Arc<Recording>, name: String, offset: f64) -> Self {
+        ReadResimulated {
+            messages: Box::new(recording.clone().into_messages()),
+            recording,
+            run: None,
+            gate: FromOffset::new(offset),
+            name,
         }
     }
-    gate.flush(&out);
+
+    /// Why the recording cannot be re-simulated, with the recorded scene's folder
+    /// (a server path, none of the client's business) said as `<scene directory>`.
+    fn cannot(&self, e: ResimError) -> Status {
+        let mut why = e.to_string();
+        if let Some(dir) = &self.recording.meta().scene_dir {
+            why = why.replace(&*dir.to_string_lossy(), "<scene directory>");
+        }
+        Status::failed_precondition(format!("`{}` cannot be re-simulated: {why}", self.name))
+    }
+}
+
+impl Reader for ReadResimulated {
+    fn read(&mut self, burst: &mut Burst) -> bool {
+        let mut out = Feed { out: burst };
+        let mut run = match self.run.take() {
+            Some(run) => run,
+            None => match Resimulation::new(&self.recording, self.recording.meta(), None) {
+                Ok(run) => run,
+                Err(e) => {
+                    out.fail(self.cannot(e));
+                    return false;
+                }
+            },
+        };
+        while out.out.len() < BURST_MESSAGES {
+            let Some(m) = self.messages.next() else {
+                self.gate.flush(&mut out);
+                return false;
+            };
+            let m = match m {
+                Ok(m) => m,
+                Err(e) => {
+                    out.fail(read_status(&self.name, &e));
+                    return false;
+                }
+            };
+            let tick = match m.message {
+                Recorded::Event(e) if !from_physics(&e) => {
+                    self.gate.pass(e.sim_time_s, Item::Event(e), &mut out);
+                    continue;
+                }
+                Recorded::Surface(f) => f.tick,
+                _ => continue,
+            };
+            let gate = &mut self.gate;
+            let sent = run.run_to(tick, |stepped| {
+                // The order a session writes a tick in: its contact events, then the
+                // surface and every instrument's state.
+                let frame = stepped.frame;
+                let t = frame.sim_time;
+                let surface = v1::SurfaceFrame {
+                    tick: frame.tick,
+                    sim_time_s: frame.sim_time,
+                    positions: frame.surface,
+                };
+                let items = (stepped.events.into_iter().map(Item::Event))
+                    .chain([Item::Surface(surface)])
+                    .chain(frame.instruments.into_iter().map(Item::State));
+                for item in items {
+                    gate.pass(t, item, &mut out);
+                }
+                true
+            });
+            if let Err(e) = sent {
+                out.fail(self.cannot(e));
+                return false;
+            }
+        }
+        self.run = Some(run);
+        true
+    }
 }
 
 /// Sends `feed`'s messages at their times divided by `speed` after now, until the

@@ -16,19 +16,22 @@ pub struct ScenesService {
 }
 
 impl ScenesService {
-    /// Builds scene `name` to describe it (mesh sizes and the rest surface need the
-    /// mesh).
+    /// Scene `name` described (mesh sizes and the rest surface need the mesh, so
+    /// the first call builds it; the catalog keeps the answer).
     fn describe(&self, name: &str) -> Result<v1::SceneDescription, Status> {
-        let scene = self
-            .registry
-            .catalog
-            .scenes
-            .get(name)
-            .ok_or_else(|| Status::not_found(format!("no scene `{}`", printable(name))))?;
-        let sim = tokio::task::block_in_place(|| scene.build()).map_err(|e| {
-            Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
-        })?;
-        Ok(description::description(scene, &sim))
+        let described = tokio::task::block_in_place(|| {
+            self.registry.catalog.described(name, |scene| {
+                let sim = scene
+                    .build()
+                    .map_err(|e| format!("scene `{name}` does not build: {e}"))?;
+                Ok(description::description(scene, &sim))
+            })
+        });
+        match described {
+            None => Err(Status::not_found(format!("no scene `{}`", printable(name)))),
+            Some(Ok(description)) => Ok(description),
+            Some(Err(e)) => Err(Status::failed_precondition(e)),
+        }
     }
 }
 

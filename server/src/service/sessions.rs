@@ -1,4 +1,4 @@
-//! `Sessions`: create, inspect, list and close.
+//! `Sessions`: create, inspect, list and close sessions; evict a station.
 
 use std::sync::Arc;
 
@@ -75,6 +75,36 @@ impl Sessions for SessionsService {
         let session = self.registry.close(&r.session_id, &reason)?;
         Ok(Response::new(v1::CloseSessionResponse {
             session: Some(session.info()),
+        }))
+    }
+
+    async fn evict_station(
+        &self,
+        request: Request<v1::EvictStationRequest>,
+    ) -> Result<Response<v1::EvictStationResponse>, Status> {
+        let who = caller(&request)?;
+        who.require_instructor("evicting a station")?;
+        let r = request.get_ref();
+        limits::check_name("session_id", &r.session_id)?;
+        limits::check_reason("reason", &r.reason)?;
+        let reason = if r.reason.is_empty() {
+            "no reason given".into()
+        } else {
+            // Escaped: it goes into an event and the evicted station's status.
+            printable(&r.reason)
+        };
+        let session = self.registry.get(&r.session_id)?;
+        let station = session
+            .evict(r.station_id, &printable(&who.name), &reason)
+            .await
+            .ok_or_else(|| {
+                Status::not_found(format!(
+                    "session `{}` has no station {}",
+                    session.id, r.station_id
+                ))
+            })?;
+        Ok(Response::new(v1::EvictStationResponse {
+            station: Some(station),
         }))
     }
 }

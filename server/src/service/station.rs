@@ -1,4 +1,6 @@
-//! `Station.Join`: a trainee station's bidirectional stream.
+//! `Station.Join`: a trainee station's bidirectional stream; and `Station.Attach`
+//! with `Station.SendPoses`, the same station split into a server stream and unary
+//! calls for browsers ([`super::attach`]).
 //!
 //! The first message must be `open` (a `JoinRequest`), within [`OPEN_TIMEOUT`]; the
 //! server checks the role (`ROLE_UNSPECIFIED` is `INVALID_ARGUMENT`), the session and
@@ -21,6 +23,15 @@
 //! release the station's instruments, which are withdrawn from the body (the
 //! tissue they held is let go) and have no holder until a station claims them
 //! again.
+//!
+//! The server also ends the stream of a station that is gone ([`liveness`]: silent
+//! or frozen for the station timeout; `DEADLINE_EXCEEDED`, after a
+//! `STATION_TIMED_OUT` event) or that an instructor evicts
+//! ([`Session::evict`]; `ABORTED` naming who and why, after a `STATION_EVICTED`
+//! event). Either way the status goes out ahead of anything still queued for the
+//! station, and the instruments are released as above.
+//!
+//! [`liveness`]: super::liveness
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -30,15 +41,16 @@ use laparo_proto::text::printable;
 use laparo_proto::v1;
 use laparo_proto::v1::ErrorCode;
 use laparo_proto::v1::station_message::Kind;
-use tokio::sync::{mpsc, watch};
-use tokio_stream::wrappers::ReceiverStream;
+use tokio::sync::{mpsc, oneshot, watch};
 use tonic::{Request, Response, Status, Streaming};
 
+use super::attach::{AttachStream, Attachments};
 use super::auth::{Role, caller};
 use super::decode_status::contract_status;
+use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
-use crate::session::{PoseIn, RateLimit, Rejection, Session, check_pose};
+use crate::session::{Eviction, PoseIn, RateLimit, Rejection, Session, check_pose};
 
 /// How long a station has to send its opening message.
 pub const OPEN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -73,22 +85,25 @@ impl Default for PoseLimits {
 pub struct StationService {
     pub registry: Arc<Registry>,
     pub limits: PoseLimits,
+    /// How long a station may be silent or frozen ([`super::liveness`]).
+    pub timeout: StationTimeout,
+    /// Stations opened by Attach, by handle.
+    pub attachments: Arc<Attachments>,
 }
 
 type Out = mpsc::Sender<Result<v1::ServerMessage, Status>>;
 
 #[tonic::async_trait]
 impl v1::station_server::Station for StationService {
-    type JoinStream = ReceiverStream<Result<v1::ServerMessage, Status>>;
+    type JoinStream = Outbound<v1::ServerMessage>;
+    type AttachStream = AttachStream;
 
     async fn join(
         &self,
         request: Request<Streaming<v1::StationMessage>>,
     ) -> Result<Response<Self::JoinStream>, Status> {
         let caller = caller(&request)?;
-        let peer = request.remote_addr().map(|a| a.ip().to_string());
-        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
-        self.registry.joins.admit(&key, std::time::Instant::now())?;
+        self.admit(&caller, &request)?;
         let mut inbound = request.into_inner();
         let first = tokio::time::timeout(OPEN_TIMEOUT, inbound.message())
             .await
@@ -102,6 +117,68 @@ impl v1::station_server::Station for StationService {
                 "the first message of Join must be `open` (a JoinRequest)",
             ));
         };
+        let opened = self.open(&caller, &open)?;
+        let outbound = opened.run(Inbound::Join(Box::new(inbound)), self.reading(), || {});
+        Ok(Response::new(outbound))
+    }
+
+    async fn attach(
+        &self,
+        request: Request<v1::JoinRequest>,
+    ) -> Result<Response<Self::AttachStream>, Status> {
+        let caller = caller(&request)?;
+        self.admit(&caller, &request)?;
+        let opened = self.open(&caller, request.get_ref())?;
+        let (handle, poses) = self.attachments.attach(caller)?;
+        let attachments = self.attachments.clone();
+        let ended = handle.clone();
+        let outbound = opened.run(Inbound::Attach(poses), self.reading(), move || {
+            attachments.detach(&ended)
+        });
+        Ok(Response::new(super::attach::stream(handle, outbound)))
+    }
+
+    async fn send_poses(
+        &self,
+        request: Request<v1::SendPosesRequest>,
+    ) -> Result<Response<v1::SendPosesResponse>, Status> {
+        let caller = caller(&request)?;
+        let queued = self.attachments.send(&caller, request.into_inner())?;
+        Ok(Response::new(v1::SendPosesResponse { queued }))
+    }
+}
+
+/// A station granted and announced, before its stream runs.
+struct Opened {
+    session: Arc<Session>,
+    station: u64,
+    claimed: Vec<usize>,
+    rate: f64,
+    tx: Out,
+    rx: mpsc::Receiver<Result<v1::ServerMessage, Status>>,
+    /// Where an instructor's eviction of the station arrives.
+    evicted: oneshot::Receiver<Eviction>,
+}
+
+impl StationService {
+    /// What the reader of a station's messages enforces: pose limits and the
+    /// station timeout.
+    fn reading(&self) -> (PoseLimits, StationTimeout) {
+        (self.limits, self.timeout)
+    }
+
+    /// The per-caller join rate (token name and peer address), shared by Join and
+    /// Attach.
+    fn admit<T>(&self, caller: &super::auth::Caller, request: &Request<T>) -> Result<(), Status> {
+        let peer = request.remote_addr().map(|a| a.ip().to_string());
+        let key = format!("{} {}", caller.name, peer.unwrap_or_default());
+        self.registry.joins.admit(&key, std::time::Instant::now())
+    }
+
+    /// Checks a `JoinRequest` (lengths, role, session, claims), adds the station
+    /// to the session and queues `Joined` and the recording's events: what Join
+    /// and Attach share.
+    fn open(&self, caller: &super::auth::Caller, open: &v1::JoinRequest) -> Result<Opened, Status> {
         super::limits::check_name("session_id", &open.session_id)?;
         super::limits::check_name("client_name", &open.client_name)?;
         super::limits::check_names("instruments", &open.instruments)?;
@@ -139,7 +216,7 @@ impl v1::station_server::Station for StationService {
             claimed.push(k);
         }
         let rate = frame_rate(open.surface_frame_rate_hz, session.scene.mechanics.rate_hz)?;
-        let station = {
+        let (station, evicted) = {
             let mut roster = session.roster();
             for &k in &claimed {
                 if let Some(holder) = roster.holders[k] {
@@ -149,14 +226,15 @@ impl v1::station_server::Station for StationService {
                     )));
                 }
             }
-            Session::add_station(
+            let station = Session::add_station(
                 &mut roster,
                 role,
                 // Escaped once here: the name goes into events and session infos.
                 &printable(&open.client_name),
                 &claimed,
                 open.instruments.clone(),
-            )
+            );
+            (station, Session::eviction_handle(&mut roster, station))
         };
         session.publish(
             v1::EventKind::StationJoined,
@@ -186,13 +264,54 @@ impl v1::station_server::Station for StationService {
                 kind: Some(v1::server_message::Kind::Event(event)),
             }));
         }
+        Ok(Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+            evicted,
+        })
+    }
+}
+
+impl Opened {
+    /// Runs the station: frames and events out ([`pump`]), its messages in
+    /// ([`receive`]) until it leaves, is found gone or is evicted; then its
+    /// instruments are released, the departure told, and `ended` called. Returns
+    /// the outgoing stream.
+    fn run(
+        self,
+        inbound: Inbound,
+        (limits, timeout): (PoseLimits, StationTimeout),
+        ended: impl FnOnce() + Send + 'static,
+    ) -> Outbound<v1::ServerMessage> {
+        let Opened {
+            session,
+            station,
+            claimed,
+            rate,
+            tx,
+            rx,
+            evicted,
+        } = self;
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
         tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
-        let limits = self.limits;
+        let taken = Taken::new(Instant::now());
+        let (outbound, cut) = Outbound::new(rx, taken.clone());
+        let reader = Reader {
+            limits,
+            liveness: Liveness::new(timeout, Instant::now(), taken),
+            check_period: timeout.check_period(),
+            evicted,
+        };
         tokio::spawn(async move {
             let _connected = connected;
-            receive(&session, station, &claimed, inbound, &tx, limits).await;
+            let ending = receive(&session, station, &claimed, inbound, &tx, reader).await;
+            let evicted = end(&session, station, ending, cut);
+            ended();
             session.remove_station(station);
             session.publish(
                 v1::EventKind::StationLeft,
@@ -201,8 +320,64 @@ impl v1::station_server::Station for StationService {
                 String::new(),
             );
             let _ = done_tx.send(true);
+            if let Some(done) = evicted {
+                let _ = done.send(());
+            }
         });
-        Ok(Response::new(ReceiverStream::new(rx)))
+        outbound
+    }
+}
+
+/// How a station's reading ended.
+enum Ending {
+    /// It left, half-closed, broke, was closed for abuse, or its session closed:
+    /// its stream says so by itself.
+    Ended,
+    /// It was silent or frozen for the station timeout.
+    Gone(Gone),
+    /// An instructor evicted it.
+    Evicted(Eviction),
+}
+
+/// Announces a station ended by the server (timed out or evicted) and cuts its
+/// stream with the status that says why; the eviction's acknowledgement, to send
+/// once its instruments are free.
+fn end(
+    session: &Session,
+    station: u64,
+    ending: Ending,
+    cut: oneshot::Sender<Status>,
+) -> Option<oneshot::Sender<()>> {
+    match ending {
+        Ending::Ended => None,
+        Ending::Gone(gone) => {
+            let detail = format!("station {station} {gone}: its instruments are released");
+            let _ = cut.send(Status::deadline_exceeded(detail.clone()));
+            session.publish(v1::EventKind::StationTimedOut, Some(station), None, detail);
+            None
+        }
+        Ending::Evicted(e) => {
+            let detail = format!("evicted by `{}`: {}", e.by, e.reason);
+            let _ = cut.send(Status::aborted(format!("station {station} {detail}")));
+            session.publish(v1::EventKind::StationEvicted, Some(station), None, detail);
+            Some(e.done)
+        }
+    }
+}
+
+/// Where a station's messages come from: Join's stream, or the queue SendPoses
+/// fills for a station opened by Attach.
+enum Inbound {
+    Join(Box<Streaming<v1::StationMessage>>),
+    Attach(mpsc::Receiver<v1::StationMessage>),
+}
+
+impl Inbound {
+    async fn message(&mut self) -> Result<Option<v1::StationMessage>, Status> {
+        match self {
+            Inbound::Join(stream) => stream.message().await,
+            Inbound::Attach(queue) => Ok(queue.recv().await),
+        }
     }
 }
 
@@ -225,15 +400,33 @@ struct Claim {
     last: Option<u64>,
 }
 
-/// Reads the station's messages until it leaves, drops, or is closed for abuse.
+/// What the reader of a station's messages watches besides them.
+struct Reader {
+    limits: PoseLimits,
+    liveness: Liveness,
+    check_period: Duration,
+    evicted: oneshot::Receiver<Eviction>,
+}
+
+/// Reads the station's messages until it leaves, drops, is closed for abuse, is
+/// found gone or is evicted.
 async fn receive(
     session: &Arc<Session>,
     station: u64,
     claimed: &[usize],
-    mut inbound: Streaming<v1::StationMessage>,
+    mut inbound: Inbound,
     tx: &Out,
-    limits: PoseLimits,
-) {
+    reader: Reader,
+) -> Ending {
+    let Reader {
+        limits,
+        mut liveness,
+        check_period,
+        mut evicted,
+    } = reader;
+    let mut check = tokio::time::interval(check_period);
+    check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+
     let mut claims: Vec<Claim> = claimed
         .iter()
         .map(|&index| Claim {
@@ -248,25 +441,42 @@ async fn receive(
     let mut closing = session.closing();
     loop {
         // A closing session stops reading too, so that the stream ends on both sides.
+        // A station whose outgoing stream is gone (an Attach stream cancelled)
+        // has left.
         let next = tokio::select! {
             m = inbound.message() => m,
-            _ = closing.wait_for(Option::is_some) => return,
+            _ = closing.wait_for(Option::is_some) => return Ending::Ended,
+            _ = tx.closed() => return Ending::Ended,
+            e = &mut evicted => match e {
+                Ok(e) => return Ending::Evicted(e),
+                // Removed from the roster by whoever evicted it, past the wait.
+                Err(_) => return Ending::Ended,
+            },
+            _ = check.tick() => {
+                let waiting = tx.capacity() < OUTBOUND;
+                match liveness.check(Instant::now(), waiting) {
+                    Some(gone) => return Ending::Gone(gone),
+                    None => continue,
+                }
+            }
         };
+        liveness.heard(Instant::now());
         let message = match next {
             Ok(Some(m)) => m,
-            Ok(None) => return,
+            Ok(None) => return Ending::Ended,
             Err(status) => {
                 // A transport error, a message that does not decode or one over the
                 // size limit: tell the station why, if it can still hear, with the
                 // contract's code.
                 let _ = tx.try_send(Err(contract_status(status)));
-                return;
+                return Ending::Ended;
             }
         };
         let now = start.elapsed().as_secs_f64();
         let result = match message.kind {
             Some(Kind::Pose(p)) => accept_pose(session, station, &mut claims, &p, now),
-            Some(Kind::Leave(_)) => return,
+            Some(Kind::Heartbeat(_)) => Ok(()),
+            Some(Kind::Leave(_)) => return Ending::Ended,
             Some(Kind::Open(_)) => Err((
                 Rejection {
                     code: ErrorCode::AlreadyJoined,
@@ -334,7 +544,7 @@ async fn receive(
                 ))
             };
             let _ = tx.send(Err(status)).await;
-            return;
+            return Ending::Ended;
         }
     }
 }

@@ -102,7 +102,8 @@ pub async fn pump<M: Wrap>(
             biased;
             _ = closing.changed() => {
                 let reason: String = closing.borrow().clone().unwrap_or_default();
-                let _ = tx.send(Err(Status::unavailable(format!("session closed: {reason}")))).await;
+                let status = Err(Status::unavailable(format!("session closed: {reason}")));
+                let _ = send_unless_done(&tx, status, &mut done).await;
                 break;
             }
             changed = frames.changed() => {
@@ -134,7 +135,7 @@ pub async fn pump<M: Wrap>(
             event = events.recv() => match event {
                 Ok(e) => {
                     if let Some(m) = send(Item::Event(e))
-                        && tx.send(m).await.is_err()
+                        && !send_unless_done(&tx, m, &mut done).await
                     {
                         break;
                     }
@@ -161,5 +162,24 @@ pub async fn pump<M: Wrap>(
             }
             _ = tx.closed() => break,
         }
+    }
+}
+
+/// Sends `message`, waiting for room, unless the stream is done first (a station
+/// found gone or evicted: its client may never take another message, and this
+/// task must not wait for it for ever). Whether it was sent.
+///
+/// The send is tried first: when a session closes, its station's reader stops and
+/// `done` fires at once, and a queue with room must still take the status that
+/// says why (an unbiased choice dropped it now and then).
+async fn send_unless_done<M>(
+    tx: &mpsc::Sender<Result<M, Status>>,
+    message: Result<M, Status>,
+    done: &mut watch::Receiver<bool>,
+) -> bool {
+    tokio::select! {
+        biased;
+        sent = tx.send(message) => sent.is_ok(),
+        _ = done.wait_for(|d| *d) => false,
     }
 }

@@ -56,6 +56,9 @@ impl Mechanics {
         let n = self.sim.instruments.len();
         let mut holders = vec![Holder::default(); n];
         let mut outputs = TickOutputs::new(n);
+        // A tick's contact events (at most one per instrument), held until its frame
+        // is known finite: a tick that halts the session publishes nothing.
+        let mut pending = Vec::with_capacity(n);
         let mut tick_ms: Vec<f64> = Vec::with_capacity(256);
         let mut idle_since: Option<Instant> = None;
         let mut next = Instant::now();
@@ -93,16 +96,15 @@ impl Mechanics {
                 // Closing cut the tick short: it is not published.
                 break;
             }
-            let events = &self.events;
-            let recorder = self.recorder.as_deref();
-            let frame = outputs.produce(
-                &self.sim,
-                |k| holders[k],
-                |event| super::broadcast_event(recorder, events, event),
-            );
+            pending.clear();
+            let frame = outputs.produce(&self.sim, |k| holders[k], |event| pending.push(event));
             if let Some(fault) = super::first_non_finite(&frame.surface, &frame.instruments) {
                 self.halt(fault, idle_since);
                 break;
+            }
+            let recorder = self.recorder.as_deref();
+            for event in pending.drain(..) {
+                super::broadcast_event(recorder, &self.events, event);
             }
             let frame = Arc::new(frame);
             if let Some(r) = &self.recorder {

@@ -18,12 +18,11 @@
 
 pub mod closing;
 mod error;
+pub mod eviction;
 mod halt;
 pub mod idle;
 pub mod input;
 mod mechanics;
-#[cfg(test)]
-mod tests_halt;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -41,6 +40,7 @@ use crate::frame::description::description;
 use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use closing::Closing;
 pub use error::SessionError;
+pub use eviction::Eviction;
 pub use halt::first_non_finite;
 pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
 pub use input::{PoseIn, RateLimit, Rejection, Slot, Workspace, check_pose};
@@ -80,6 +80,8 @@ pub struct Roster {
     pub holders: Vec<Option<u64>>,
     pub observers: u32,
     next_station: u64,
+    /// Each station's eviction handle ([`eviction`]).
+    evictions: BTreeMap<u64, tokio::sync::oneshot::Sender<Eviction>>,
 }
 
 /// A running session.
@@ -242,6 +244,7 @@ impl Session {
     pub fn remove_station(&self, station: u64) {
         let mut roster = self.roster();
         roster.stations.remove(&station);
+        roster.evictions.remove(&station);
         for (k, h) in roster.holders.iter_mut().enumerate() {
             if *h == Some(station) {
                 *h = None;

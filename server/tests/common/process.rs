@@ -37,3 +37,38 @@ pub async fn connect(url: &str, deadline: Instant) -> tonic::transport::Channel 
         }
     }
 }
+
+/// A real server on `port` with `args`, its log on the test's stderr.
+pub fn spawn(port: u16, args: &[&std::ffi::OsStr]) -> Server {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_laparo-server"))
+        .args(["--listen", &format!("127.0.0.1:{port}")])
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::inherit())
+        .spawn()
+        .unwrap();
+    Server(child)
+}
+
+/// Sends SIGTERM to `server` and waits for it to exit, at most `bound` (then the
+/// test fails); its exit status and how long it took.
+pub async fn terminate(
+    server: &mut Server,
+    bound: Duration,
+) -> (std::process::ExitStatus, Duration) {
+    let sent = Instant::now();
+    // SAFETY: a signal to our own child process.
+    let term = unsafe { libc::kill(server.0.id() as i32, libc::SIGTERM) };
+    assert_eq!(term, 0, "SIGTERM could not be sent");
+    loop {
+        if let Some(status) = server.0.try_wait().unwrap() {
+            return (status, sent.elapsed());
+        }
+        assert!(
+            sent.elapsed() < bound,
+            "the server did not exit within {bound:?} of SIGTERM"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}

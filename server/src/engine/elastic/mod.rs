@@ -10,17 +10,38 @@
 //!
 //! Storage is a symmetric block matrix ([`BlockMatrix`]) holding each vertex tensor and
 //! each edge tensor once.
+//!
+//! A scene chooses the [`Formulation`]: these linear tensors as they are, or applied
+//! in each tetrahedron's rotated frame ([`corotational`]), which is exact for rigid
+//! motions of any size and so for the large rotations of tissue pushed aside.
 
 mod assemble;
+pub mod corotational;
+pub mod rotation;
 mod stress;
 
 pub use assemble::{shape_gradients, tet_stiffness};
-pub use stress::{tet_displacements, von_mises_stress};
+pub use corotational::{Corotated, Element};
+pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
 
 use nalgebra::{Matrix3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
 
 use super::material::Material;
 use super::mesh::TetMesh;
+
+/// How the elastic force depends on the vertex positions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Formulation {
+    /// `f = −K (x − X)`: exact for small displacements, wrong under large rotations
+    /// (a rigidly turned body is strained).
+    #[default]
+    Linear,
+    /// `f = −Σ_e R_e K_e (R_eᵀ x_e − X_e)` with each element's polar rotation
+    /// ([`corotational`]): small strains, rotations of any size.
+    Corotational,
+}
 
 /// The assembled linear-elastic model of a mesh: stiffness tensors and lumped masses.
 #[derive(Clone, Debug)]
@@ -36,6 +57,10 @@ pub struct ElasticModel {
     pub tet_material: Vec<u16>,
     /// The distinct materials of the mesh.
     pub materials: Vec<Material>,
+    /// Linear or corotational.
+    pub formulation: Formulation,
+    /// Per-tetrahedron data of the corotational model (empty for the linear one).
+    pub elements: Vec<Element>,
 }
 
 /// A symmetric matrix of 3×3 blocks on the pattern of the mesh's vertex–edge graph,
@@ -112,7 +137,7 @@ impl BlockMatrix {
     }
 
     /// Index of the stored block `(i, j)` for `i ≤ j`.
-    fn find_upper(&self, i: u32, j: u32) -> Option<usize> {
+    pub(crate) fn find_upper(&self, i: u32, j: u32) -> Option<usize> {
         let (s, e) = (
             self.row_start[i as usize] as usize,
             self.row_start[i as usize + 1] as usize,
@@ -213,8 +238,18 @@ impl BlockMatrix {
 
 impl ElasticModel {
     /// Assembles the tensor-mass model of `mesh`, whose tetrahedron `t` has material
-    /// `materials[tet_material[t]]`. Positions must already be in metres.
+    /// `materials[tet_material[t]]`, linear. Positions must already be in metres.
     pub fn new(mesh: &TetMesh, materials: Vec<Material>, tet_material: Vec<u16>) -> Self {
+        Self::with_formulation(mesh, materials, tet_material, Formulation::Linear)
+    }
+
+    /// As [`new`](Self::new), with the given formulation.
+    pub fn with_formulation(
+        mesh: &TetMesh,
+        materials: Vec<Material>,
+        tet_material: Vec<u16>,
+        formulation: Formulation,
+    ) -> Self {
         assert_eq!(tet_material.len(), mesh.tets.len());
         let n = mesh.vertex_count();
         let mut stiffness = BlockMatrix::with_pattern(n, &mesh.edges);
@@ -238,12 +273,54 @@ impl ElasticModel {
                 }
             }
         }
+        let elements = match formulation {
+            Formulation::Linear => Vec::new(),
+            Formulation::Corotational => corotational::elements(
+                &mesh.positions,
+                &mesh.tets,
+                &stiffness,
+                &materials,
+                &tet_material,
+            ),
+        };
         ElasticModel {
             rest: mesh.positions.clone(),
             mass,
             stiffness,
             tet_material,
             materials,
+            formulation,
+            elements,
+        }
+    }
+
+    /// The per-tick corotational workspace, for a corotational model.
+    pub fn corotated(&self) -> Option<Corotated> {
+        (self.formulation == Formulation::Corotational).then(|| Corotated::new(self))
+    }
+
+    /// The small strain of tetrahedron `t` at `x`: `sym(∇u)` (linear) or
+    /// `sym(Rᵀ F) − I` with `R` the polar rotation of `F` (corotational), the strain
+    /// each model's forces act on. Extracts the rotation afresh (for output, not for
+    /// the tick).
+    pub fn tet_strain(&self, mesh_tets: &[[u32; 4]], x: &[Point3<f64>], t: usize) -> Matrix3<f64> {
+        match self.formulation {
+            Formulation::Linear => {
+                let (g, _) = shape_gradients(&self.rest, mesh_tets[t]);
+                let u = tet_displacements(x, &self.rest, mesh_tets[t]);
+                let mut grad = Matrix3::zeros();
+                for k in 0..4 {
+                    grad += u[k] * g[k].transpose();
+                }
+                0.5 * (grad + grad.transpose())
+            }
+            Formulation::Corotational => {
+                let e = &self.elements[t];
+                let f = e.deformation_gradient(x);
+                let mut q = nalgebra::UnitQuaternion::identity();
+                rotation::extract_rotation(&f, &mut q, rotation::COLD_ITERATIONS);
+                e.strain(q.to_rotation_matrix().matrix(), &f)
+            }
         }
     }
 
@@ -252,7 +329,21 @@ impl ElasticModel {
         self.rest.len()
     }
 
-    /// Elastic potential energy `½ uᵀ K u` of the displacement `u`, J.
+    /// Elastic potential energy of the configuration `x`, J: `½ uᵀ K u` with
+    /// `u = x − X` (linear), or the corotated energy of
+    /// [`corotational`] (rotations extracted afresh).
+    pub fn strain_energy_at(&self, x: &[Point3<f64>]) -> f64 {
+        match self.formulation {
+            Formulation::Linear => {
+                let u: Vec<_> = x.iter().zip(&self.rest).map(|(x, r)| x - r).collect();
+                self.strain_energy(&u)
+            }
+            Formulation::Corotational => corotational::strain_energy(&self.elements, x),
+        }
+    }
+
+    /// Elastic potential energy `½ uᵀ K u` of the displacement `u`, J (the linear
+    /// model's).
     pub fn strain_energy(&self, u: &[Vector3<f64>]) -> f64 {
         (0..u.len())
             .map(|i| 0.5 * u[i].dot(&self.stiffness.row_times(i, u)))
@@ -265,7 +356,14 @@ impl ElasticModel {
     /// `λ_max ≤ max_r Σ_c |(M⁻¹K)_rc|`. The eigenvalues of `M⁻¹K` are real and
     /// non-negative (it is similar to the symmetric `M^{-½} K M^{-½}`), so this bounds
     /// the squared highest angular frequency `ω_max²` of the mesh.
+    ///
+    /// For the corotational model the bound must hold for every rotation of the
+    /// elements, which Gershgorin's on `K` does not; it is then
+    /// [`corotational::max_eigenvalue_bound`]'s element-by-element bound.
     pub fn max_eigenvalue_bound(&self) -> f64 {
+        if self.formulation == Formulation::Corotational {
+            return corotational::max_eigenvalue_bound(&self.elements, &self.mass);
+        }
         let k = &self.stiffness;
         let mut bound = 0.0f64;
         for i in 0..k.rows() {
@@ -287,8 +385,11 @@ impl ElasticModel {
             + self.rest.capacity() * 24
             + self.mass.capacity() * 8
             + self.tet_material.capacity() * 2
+            + self.elements.capacity() * std::mem::size_of::<Element>()
     }
 }
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_corotational;

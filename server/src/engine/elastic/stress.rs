@@ -29,3 +29,13 @@ pub fn tet_displacements(
 ) -> [Vector3<f64>; 4] {
     t.map(|i| x[i as usize] - rest[i as usize])
 }
+
+/// Von Mises equivalent stress (Pa) of a small strain `ε` in `material`:
+/// `σ = λ tr(ε) I + 2μ ε`, `σ_vM = √(3/2 s:s)` with `s` the deviator of `σ`. It does
+/// not depend on the frame `ε` is written in.
+pub fn von_mises_of_strain(eps: &Matrix3<f64>, material: &Material) -> f64 {
+    let (lambda, mu) = material.lame();
+    let sigma = Matrix3::identity() * (lambda * eps.trace()) + 2.0 * mu * eps;
+    let s = sigma - Matrix3::identity() * (sigma.trace() / 3.0);
+    (1.5 * s.component_mul(&s).sum()).sqrt()
+}

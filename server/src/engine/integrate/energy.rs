@@ -16,20 +16,17 @@ pub fn kinetic_energy(model: &ElasticModel, state: &State) -> f64 {
 }
 
 /// Total mechanical energy under uniform gravity `g`:
-/// `½ Σ m_i |v_i|² + ½ uᵀ K u − Σ m_i g · u_i` (J), zero at rest in the reference
+/// `½ Σ m_i |v_i|² + W(x) − Σ m_i g · u_i` (J), with `W` the strain energy of the
+/// model (`½ uᵀ K u` when linear),, zero at rest in the reference
 /// configuration. With damping and fixed supports it can only decrease over time in
 /// the exact dynamics; the static equilibrium is its minimum.
 pub fn mechanical_energy(model: &ElasticModel, state: &State, gravity: Vector3<f64>) -> f64 {
-    let u: Vec<Vector3<f64>> = state
+    let gravity_work: f64 = state
         .x
         .iter()
         .zip(&model.rest)
-        .map(|(x, r)| x - r)
-        .collect();
-    let gravity_work: f64 = u
-        .iter()
         .zip(&model.mass)
-        .map(|(u, m)| m * gravity.dot(u))
+        .map(|((x, r), m)| m * gravity.dot(&(x - r)))
         .sum();
-    kinetic_energy(model, state) + model.strain_energy(&u) - gravity_work
+    kinetic_energy(model, state) + model.strain_energy_at(&state.x) - gravity_work
 }

@@ -2,11 +2,18 @@
 //!
 //! Each substep of length `h`:
 //!
-//! `v ← (v + h (g + f_i/m_i)) / (1 + h α)`,  `x ← x + h v`,  with `f = −K u`.
+//! `v ← (v + h (g + f_i/m_i)) / (1 + h α)`,  `x ← x + h v`,  with `f = −K u`
+//! (linear) or `f = −Σ_e R_e K_e (R_eᵀ x_e − X_e)` with the rotations extracted at the
+//! start of every substep (corotational): the exact force of the corotated energy, so
+//! symplectic Euler keeps its bounded shadow energy. (Freezing the rotations over a
+//! tick, as the implicit step must, was tried: it saves the extraction per substep but
+//! the one-tick lag of the rotations then slows the settling of a soft, strongly
+//! sagging liver, 0.8% off its equilibrium after 1.5 s at 1 kPa and 50 Hz.)
 //!
 //! The damping term is taken implicitly (the division), so it never limits `h`; the
 //! elastic term is stable for `h ω_max < 2`. The substep count is chosen per tick from
-//! the Gershgorin bound `ω̂ ≥ ω_max` of the mesh and material, so no Young's modulus,
+//! the bound `ω̂ ≥ ω_max` of the mesh and material (for the corotational model, one
+//! that holds for every rotation of the elements), so no Young's modulus,
 //! Poisson ratio or tick length can make it blow up: a stiffer material simply takes
 //! more substeps. Imposed vertices move linearly from where they are to their target
 //! over the tick.
@@ -41,8 +48,7 @@ pub(super) fn step(
             taken = s - 1;
             break;
         }
-        state.displacement_into(model, &mut it.u);
-        model.stiffness.mul(&it.u, &mut it.f);
+        it.exact_negated_elastic_force(model, &state.x);
         for i in 0..state.x.len() {
             if imposed.is_imposed(i) {
                 continue;
@@ -58,6 +64,8 @@ pub(super) fn step(
             state.x[i] = it.start[i] + (imposed.target(i) - it.start[i]) * frac;
         }
     }
+    // The reaction reads K̂ and o: assemble them with the rotations of the end state.
+    it.freeze_rotations(model, &state.x);
     StepReport {
         substeps: taken,
         cg_iterations: 0,

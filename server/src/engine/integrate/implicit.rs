@@ -5,6 +5,14 @@
 //!
 //! `((1 + hα) M + h² K) v₁ = M v₀ + h (M g − K u₀)`.
 //!
+//! Corotational: the rotations `R_e` are extracted at `x₀` and frozen over the tick,
+//! so the elastic force is affine, `−(K̂ u + o)` (see
+//! [`corotational`](crate::engine::elastic::corotational)), and the step is the same
+//! with `K` replaced by `K̂ = Σ_e R_e K_e R_eᵀ` and `K u₀` by `K̂ u₀ + o`, the exact
+//! force at `x₀`. `K̂` is symmetric positive semi-definite like `K`, so the step keeps
+//! its unconditional stability; the lag of the rotations by one tick is first order in
+//! the tick's rotation increment and vanishes at rest.
+//!
 //! The matrix is symmetric positive definite for any `h > 0`, so the step is
 //! unconditionally stable and dissipative: stiff tissue and long ticks only cost CG
 //! iterations. Imposed vertices get `v₁ = (target − x₀)/h`, which lands them exactly on
@@ -33,18 +41,29 @@ pub(super) fn step(
 ) -> StepReport {
     let alpha = it.config.damping;
     let mass_factor = 1.0 + h * alpha;
-    let k = &model.stiffness;
-    if it.preconditioned_for != h {
+    // f = K u₀ (linear), or f = K̂ u₀ + o with the rotations of x₀, which then stay
+    // frozen over the tick: K is K̂ below, and K̂ changes every tick.
+    let corotational = it.corotated.is_some();
+    let k = match &mut it.corotated {
+        Some(c) => {
+            c.update(model, &state.x, &mut it.f);
+            &c.tangent
+        }
+        None => {
+            state.displacement_into(model, &mut it.u);
+            model.stiffness.mul(&it.u, &mut it.f);
+            &model.stiffness
+        }
+    };
+    if corotational || it.preconditioned_for != h {
         for i in 0..model.vertex_count() {
             let a_ii = Matrix3::identity() * (mass_factor * model.mass[i])
                 + h * h * k.block[k.diag[i] as usize];
             it.cg.precond[i] = a_ii.try_inverse().unwrap_or_else(Matrix3::identity);
         }
-        it.preconditioned_for = h;
+        it.preconditioned_for = if corotational { f64::NAN } else { h };
     }
-    // u = u₀, f = K u₀, then f = b = M v₀ + h (M g − K u₀).
-    state.displacement_into(model, &mut it.u);
-    k.mul(&it.u, &mut it.f);
+    // f = b = M v₀ + h (M g − K u₀).
     let mask = imposed.mask();
     let (mut momentum, mut weight, mut elastic) = (0.0, 0.0, 0.0);
     for i in 0..it.f.len() {

@@ -32,7 +32,7 @@ use std::sync::atomic::AtomicBool;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::elastic::ElasticModel;
+use super::elastic::{Corotated, ElasticModel};
 
 /// The deformable body's state.
 #[derive(Clone, Debug)]
@@ -139,6 +139,9 @@ pub struct Integrator {
     preconditioned_for: f64,
     /// Raised to end a step early (the state is then partway through the tick).
     interrupt: Interrupt,
+    /// The rotations, rotated stiffness `K̂` and offset `o` of a corotational model
+    /// (`None` for a linear one): every `K u` of the linear model reads `K̂ u + o`.
+    corotated: Option<Corotated>,
 }
 
 impl Integrator {
@@ -156,7 +159,38 @@ impl Integrator {
             cg: CgWorkspace::new(n),
             preconditioned_for: f64::NAN,
             interrupt: Interrupt::default(),
+            corotated: model.corotated(),
         }
+    }
+
+    /// Corotational: extracts the rotations at `x` and reassembles `K̂` and `o` with
+    /// them (for the substeps of a tick); nothing for a linear model.
+    fn freeze_rotations(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
+        if let Some(c) = &mut self.corotated {
+            c.update(model, x, &mut self.f);
+        }
+    }
+
+    /// `f = K u` (linear) or `f = Σ_e R_e K_e (R_eᵀ x_e − X_e)` with the rotations
+    /// extracted at `x` (corotational): the negated elastic force at `x`, N.
+    fn exact_negated_elastic_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
+        match &mut self.corotated {
+            Some(c) => c.force(model, x, &mut self.f),
+            None => {
+                for ((u, x), r) in self.u.iter_mut().zip(x).zip(&model.rest) {
+                    *u = x - r;
+                }
+                model.stiffness.mul(&self.u, &mut self.f);
+            }
+        }
+    }
+
+    /// The rotation of element `e` as the last step left it (identity for a linear
+    /// model), for tests and inspection.
+    pub fn element_rotation(&self, e: usize) -> nalgebra::Matrix3<f64> {
+        self.corotated
+            .as_ref()
+            .map_or_else(nalgebra::Matrix3::identity, |c| c.rotation(e))
     }
 
     /// Makes every later step stop between substeps or CG iterations once `flag` is
@@ -224,14 +258,24 @@ impl Integrator {
     }
 
     /// `reaction_i = −(K u)_i` on imposed vertices, zero elsewhere.
+    ///
+    /// Corotational: `−(K̂ u + o)_i`, with the rotations the implicit or static solve
+    /// used (frozen over the tick: the operator it solved with), or those of the end
+    /// of an explicit step.
     fn update_reaction(&mut self, model: &ElasticModel, state: &mut State, imposed: &Imposed) {
         state.displacement_into(model, &mut self.u);
         state
             .reaction
             .iter_mut()
             .for_each(|r| *r = Vector3::zeros());
+        let (k, offset) = match &self.corotated {
+            Some(c) => (&c.tangent, Some(&c.offset)),
+            None => (&model.stiffness, None),
+        };
         for &i in imposed.list() {
-            state.reaction[i as usize] = -model.stiffness.row_times(i as usize, &self.u);
+            let i = i as usize;
+            let o = offset.map_or_else(Vector3::zeros, |o| o[i]);
+            state.reaction[i] = -(k.row_times(i, &self.u) + o);
         }
     }
 
@@ -240,10 +284,19 @@ impl Integrator {
         (self.u.capacity() + self.f.capacity() + self.w.capacity()) * 24
             + self.start.capacity() * 24
             + self.cg.heap_bytes()
+            + self.corotated.as_ref().map_or(0, |c| {
+                c.tangent.heap_bytes() + c.offset.capacity() * 24 + model_rotation_bytes(c)
+            })
     }
+}
+
+fn model_rotation_bytes(c: &Corotated) -> usize {
+    c.rotation_count() * std::mem::size_of::<nalgebra::UnitQuaternion<f64>>()
 }
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_corotational;
 #[cfg(test)]
 mod tests_interrupt;

@@ -71,7 +71,7 @@ fn patch_test_on_the_irregular_liver_near_incompressible() {
     patch_test(&liver_mesh(), 0.49);
 }
 
-fn hanging_box() -> (TetMesh, Imposed) {
+pub(super) fn hanging_box() -> (TetMesh, Imposed) {
     // A 10 × 2 × 2 cm bar held at its x = 0 face.
     let mesh = box_mesh([10, 2, 2], [0.1, 0.02, 0.02]);
     let mut imposed = Imposed::new(mesh.vertex_count());

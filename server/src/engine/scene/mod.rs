@@ -31,7 +31,3 @@ pub const BUILTIN_MESHES: &[(&str, &str)] =
 
 #[cfg(test)]
 pub(crate) mod tests;
-#[cfg(test)]
-mod tests_files;
-#[cfg(test)]
-mod tests_limits;

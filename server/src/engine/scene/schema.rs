@@ -8,6 +8,7 @@ use super::SceneError;
 use super::files::{MAX_SCENE_BYTES, read_bounded};
 use super::limits::*;
 use crate::engine::contact::MAX_INSTRUMENTS;
+use crate::engine::elastic::Formulation;
 use crate::engine::integrate::IntegratorKind;
 use crate::engine::local_model::ForceModelKind;
 
@@ -76,6 +77,11 @@ pub struct MaterialSpec {
     pub poisson_ratio: f64,
     /// Density ρ, kg/m³.
     pub density: f64,
+    /// `"linear"` or `"corotational"` (see [`Formulation`]); linear when absent, so
+    /// that scenes written before the choice existed, and the recordings that keep
+    /// them, replay as they ran. The liver scenes set `"corotational"`.
+    #[serde(default)]
+    pub model: Formulation,
     /// Materials of tetrahedra with a given physical tag.
     #[serde(default)]
     pub regions: Vec<RegionSpec>,

@@ -20,7 +20,8 @@ impl Scene {
     pub fn build_on(&self, mesh: TetMesh) -> Result<Simulation, SceneError> {
         let (materials, tet_material) = materials::materials(self, &mesh)?;
         let fixed = fixed::fixed_vertices(self, &mesh)?;
-        let model = ElasticModel::new(&mesh, materials, tet_material);
+        let model =
+            ElasticModel::with_formulation(&mesh, materials, tet_material, self.material.model);
         let mut imposed = Imposed::new(mesh.vertex_count());
         for &i in &fixed {
             imposed.set(i, mesh.positions[i as usize]);

@@ -68,3 +68,37 @@ fn a_directory_lists_recordings_oldest_first_and_says_what_is_wrong_with_the_res
     // A missing directory is an error, not an empty list.
     assert!(list(&d.join("missing"), |_| false).is_err());
 }
+
+#[test]
+fn a_directory_of_many_files_lists_only_the_most_recently_modified() {
+    let dir = temp();
+    let d = dir.path();
+    let mut script = Script::new();
+    let now = SystemTime::now();
+    // Five recordings modified a minute apart, the last written first.
+    for k in 0..5u64 {
+        let path = d.join(format!("r{k}.mcap"));
+        let mut header = script.header(now);
+        header.session_id = format!("r{k}");
+        let mut sink = McapSink::create(&path, &header).unwrap();
+        sink.write_frame(&script.tick(0), SystemTime::now())
+            .unwrap();
+        drop(sink.finish().unwrap());
+        let modified = now - Duration::from_secs(60 * (5 - k));
+        std::fs::File::options()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_modified(modified)
+            .unwrap();
+    }
+    let lister = Lister::new();
+    let (listed, left_out) = lister.list_at_most(d, 3, |_| false).unwrap();
+    let mut names: Vec<&str> = listed.iter().map(|l| l.file.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["r2.mcap", "r3.mcap", "r4.mcap"]);
+    assert_eq!(left_out, 2);
+    // Under the bound nothing is left out.
+    let (listed, left_out) = lister.list_at_most(d, 5, |_| false).unwrap();
+    assert_eq!((listed.len(), left_out), (5, 0));
+}

@@ -20,6 +20,7 @@ use crate::frame::description::description;
 use crate::frame::{Frame, Holder, TickOutputs};
 
 mod damage;
+mod files;
 mod list;
 mod read_back;
 mod recorder;

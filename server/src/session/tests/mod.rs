@@ -11,6 +11,7 @@ use crate::engine::contact::pose::InstrumentPose;
 use crate::recording::Recording;
 use crate::recording::list::{self, FileState};
 
+mod halt;
 mod recording;
 
 fn temp() -> tempfile::TempDir {

@@ -9,8 +9,8 @@ use std::time::SystemTime;
 
 use laparo_proto::v1;
 
-use super::writer::{McapSink, SessionHeader, created};
-use super::{ReadError, Recording, RecoverError, recover};
+use crate::recording::writer::{McapSink, SessionHeader, created};
+use crate::recording::{ReadError, Recording, RecoverError, recover};
 
 fn temp() -> tempfile::TempDir {
     tempfile::Builder::new()

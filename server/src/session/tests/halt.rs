@@ -9,12 +9,12 @@ use std::time::SystemTime;
 use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
-use super::mechanics::{Mechanics, spawn};
-use super::{SessionStats, first_non_finite};
 use crate::engine::scene::Scene;
 use crate::frame::Frame;
 use crate::frame::description::description;
 use crate::recording::{Recorder, Recording, SessionHeader};
+use crate::session::mechanics::{Mechanics, spawn};
+use crate::session::{SessionStats, first_non_finite};
 
 fn state(force: [f64; 3]) -> v1::InstrumentState {
     v1::InstrumentState {

@@ -155,5 +155,4 @@ impl RateLimit {
 }
 
 #[cfg(test)]
-#[path = "input_tests.rs"]
 mod tests;

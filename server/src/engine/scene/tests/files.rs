@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use super::*;
 
-const LIVER: &str = include_str!("../../../meshes/liver.msh");
+const LIVER: &str = include_str!("../../../../meshes/liver.msh");
 
 /// A served scene `name.toml` in `dir` whose mesh is `mesh` (as written in the file).
 fn write_scene(dir: &Path, name: &str, mesh: &str) -> PathBuf {

@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use super::limits::*;
 use super::*;
+use crate::engine::scene::limits::*;
 
 fn scene_dir() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))

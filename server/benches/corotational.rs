@@ -1,0 +1,97 @@
+//! Tick rate of the linear and the corotational model, with contact.
+//!
+//! `cargo bench -p laparo-server --bench corotational`
+//! (`LAPARO_MESH_DIR` for liver-20k and liver-80k)
+//!
+//! The default scene (implicit at 60 Hz, CG tolerance 1e-4) on SOFA's liver,
+//! liver-20k and liver-80k, each model built and run in the same process one after
+//! the other: settled under gravity for 0.5 s (untimed), then the left instrument's
+//! tip presses straight in (axis +z) at the front point from 2 mm outside, 2 cm/s for
+//! 1 s, then holds for 0.25 s. Every tick of the press and hold is timed
+//! (`Simulation::tick`); the table gives medians, one core.
+//!
+//! Columns: median whole tick and ticks/s; median elastic step; CG iterations per
+//! tick (median); the corotational update alone (rotations of every element,
+//! re-assembly of `K̂` and the offset: median of 20 calls on the final state); the
+//! largest displacement at the end and the reaction on the instrument.
+
+mod common;
+
+/// The contact tests' gestures; the bench uses `front_point`.
+#[path = "../tests/common/contact.rs"]
+#[allow(dead_code)]
+mod gestures;
+
+use std::time::Instant;
+
+use common::*;
+use gestures::front_point;
+use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::elastic::Formulation;
+use laparo_server::engine::integrate::IntegratorKind;
+use nalgebra::{Unit, Vector3};
+
+const SETTLE_TICKS: usize = 30;
+const PRESS_TICKS: usize = 60;
+const HOLD_TICKS: usize = 15;
+/// Press speed, m per 60 Hz tick (2 cm/s).
+const STEP: f64 = 0.02 / 60.0;
+const GAP: f64 = 0.002;
+
+fn main() {
+    println!(
+        "| mesh | tetrahedra | model | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | max displacement (mm) | instrument force (N) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for case in meshes(&["sofa-liver", "liver-20k", "liver-80k"]) {
+        for model in [Formulation::Linear, Formulation::Corotational] {
+            let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
+            scene.material.model = model;
+            let mut sim = build(&scene);
+            for _ in 0..SETTLE_TICKS {
+                sim.tick();
+            }
+            let start = front_point(&sim) + Vector3::z() * GAP;
+            let axis = Unit::new_normalize(Vector3::z());
+            let (mut ticks, mut elastic, mut cg) = (Vec::new(), Vec::new(), Vec::new());
+            for k in 0..PRESS_TICKS + HOLD_TICKS {
+                let depth = STEP * (k.min(PRESS_TICKS) + 1) as f64;
+                let tip = start - Vector3::z() * depth;
+                sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
+                let t = Instant::now();
+                let report = sim.tick();
+                ticks.push(since(t) * 1e3);
+                elastic.push(sim.last_timing.elastic_step * 1e3);
+                cg.push(report.cg_iterations as f64);
+            }
+            let update = match sim.model.corotated() {
+                Some(mut c) => {
+                    let mut out = vec![Vector3::zeros(); sim.model.vertex_count()];
+                    let mut times: Vec<f64> = (0..20)
+                        .map(|_| {
+                            let t = Instant::now();
+                            c.update(&sim.model, &sim.state.x, &mut out);
+                            since(t) * 1e3
+                        })
+                        .collect();
+                    format!("{:.3}", median(&mut times))
+                }
+                None => "—".to_string(),
+            };
+            let tick = median(&mut ticks);
+            println!(
+                "| {} | {} | {:?} | {:.3} | {:.0} | {:.3} | {:.0} | {} | {:.2} | {:.3} |",
+                case.label,
+                sim.mesh.tets.len(),
+                model,
+                tick,
+                1e3 / tick,
+                median(&mut elastic),
+                median(&mut cg),
+                update,
+                sim.max_displacement() * 1e3,
+                sim.instruments[0].report.reaction.norm(),
+            );
+        }
+    }
+}

@@ -1,0 +1,272 @@
+//! Corotational elasticity: the linear tensors of each tetrahedron, applied in the
+//! element's rotated frame.
+//!
+//! Symbols: `X_k` rest and `x_k` current positions of the element's vertices, `g_k`
+//! its rest shape-function gradients, `V` its rest volume, `K_e` its 12×12 linear
+//! stiffness (blocks `K_ab` of [`tet_stiffness`](super::tet_stiffness)). The
+//! deformation gradient is `F = Σ_k x_k g_kᵀ` (`= I` at rest) and `R` the rotation of
+//! its polar decomposition `F = R S` ([`rotation`](super::rotation)).
+//!
+//! The element's elastic force on its vertices is (Müller and Gross 2004; Nesme et al.
+//! 2005, as SOFA's `TetrahedronFEMForceField` "polar" method)
+//!
+//! `f_e = −R K_e (Rᵀ x_e − X_e)`:
+//!
+//! the current shape is turned back by `Rᵀ`, its displacement from rest measured
+//! there, the linear restoring force computed in that frame and turned forward by
+//! `R`. Written with the stress, vertex `a` receives `f_a = −V R σ g_a`, where
+//! `σ = λ tr(ε) I + 2μ ε` and `ε = sym(Rᵀ F) − I = S − I` (sign: a stretched element,
+//! `ε > 0`, pulls its vertices back). Since `S` is symmetric, `R σ` is exactly
+//! `∂Ψ/∂F` of the energy `Ψ = μ ‖S − I‖² + ½ λ (tr(S − I))²` per unit rest volume
+//! (the "corotated linear" energy), so these forces derive from the energy
+//! `W = Σ_e V_e Ψ_e`: equilibria are its stationary points, and damped motion loses
+//! it. A rigid motion of the whole body (`x = Q X + c`, `Q` a rotation) gives
+//! `R = Q`, `S = I` and no force at all, where the linear model's `−K (x − X)` is
+//! large.
+//!
+//! With the rotations frozen over a tick the force is affine in `x`:
+//!
+//! `Σ_e R K_e (Rᵀ x_e − X_e) = K̂ u + o`,  `K̂ = Σ_e R K_e Rᵀ`,  `o = Σ_e R K_e (Rᵀ X_e − X_e)`,
+//!
+//! with `u = x − X`. `K̂` has the sparsity of `K` and blocks
+//! `K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a · g_b) I)` with the rotated gradients
+//! `ĝ_k = R g_k` (as `R K_ab Rᵀ`); `o_a = V R σ₀ g_a` with `ε₀ = sym(R) − I` (the
+//! stress of the rest shape turned by `R`). [`Corotated::update`] reassembles `K̂`
+//! into a preallocated [`BlockMatrix`] of the mesh's pattern, so the implicit and
+//! static solvers keep multiplying a block matrix, and every other consumer of `K u`
+//! reads `K̂ u + o` instead. At small displacements `R → I` and `K̂ u + o → K u`: the
+//! linear model is the corotational one linearised at rest.
+
+use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
+
+use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation};
+use super::{BlockMatrix, ElasticModel};
+use crate::engine::material::Material;
+
+/// The vertex pairs `(a, b)` of a tetrahedron whose blocks are stored: the four
+/// diagonal ones, then the six edges.
+const PAIRS: [(usize, usize); 10] = [
+    (0, 0),
+    (1, 1),
+    (2, 2),
+    (3, 3),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 2),
+    (1, 3),
+    (2, 3),
+];
+
+/// Flag in [`Element::slot`]: the stored block is `(tet[b], tet[a])`, so it receives
+/// `K̂_abᵀ`.
+const TRANSPOSED: u32 = 1 << 31;
+
+/// What the corotational model keeps of one tetrahedron (152 bytes).
+#[derive(Clone, Debug)]
+pub struct Element {
+    pub tet: [u32; 4],
+    /// Rest gradients `g₁, g₂, g₃` (1/m); `g₀ = −(g₁ + g₂ + g₃)`.
+    pub g: [Vector3<f64>; 3],
+    /// Rest volume `V`, m³.
+    pub volume: f64,
+    /// Lamé coefficients `λ`, `μ`, Pa.
+    pub lambda: f64,
+    pub mu: f64,
+    /// Index in [`BlockMatrix::block`] of each pair of [`PAIRS`], with [`TRANSPOSED`].
+    pub slot: [u32; 10],
+}
+
+impl Element {
+    /// The four rest gradients.
+    #[inline]
+    pub fn gradients(&self) -> [Vector3<f64>; 4] {
+        let [g1, g2, g3] = self.g;
+        [-(g1 + g2 + g3), g1, g2, g3]
+    }
+
+    /// Deformation gradient `F = Σ_k x_k g_kᵀ = Σ_{k≥1} (x_k − x₀) g_kᵀ` (the second
+    /// form because `Σ_k g_k = 0`; it reads edge vectors, not absolute positions).
+    #[inline]
+    pub fn deformation_gradient(&self, x: &[Point3<f64>]) -> Matrix3<f64> {
+        let x0 = x[self.tet[0] as usize];
+        let mut f = Matrix3::zeros();
+        for k in 0..3 {
+            f += (x[self.tet[k + 1] as usize] - x0) * self.g[k].transpose();
+        }
+        f
+    }
+
+    /// Small-strain stress `σ = λ tr(ε) I + 2μ ε` of `ε = sym(a) − I`, Pa.
+    #[inline]
+    fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
+        let eps = 0.5 * (a + a.transpose()) - Matrix3::identity();
+        Matrix3::identity() * (self.lambda * eps.trace()) + 2.0 * self.mu * eps
+    }
+
+    /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
+    #[inline]
+    pub fn strain(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
+        let a = r.tr_mul(f);
+        0.5 * (a + a.transpose()) - Matrix3::identity()
+    }
+}
+
+/// The elements of `model`'s mesh, for the corotational model.
+pub(super) fn elements(
+    positions: &[Point3<f64>],
+    tets: &[[u32; 4]],
+    stiffness: &BlockMatrix,
+    materials: &[Material],
+    tet_material: &[u16],
+) -> Vec<Element> {
+    tets.iter()
+        .zip(tet_material)
+        .map(|(&tet, &m)| {
+            let (g, volume) = super::shape_gradients(positions, tet);
+            let (lambda, mu) = materials[m as usize].lame();
+            let slot = PAIRS.map(|(a, b)| {
+                let (i, j) = (tet[a], tet[b]);
+                let k = stiffness
+                    .find_upper(i.min(j), i.max(j))
+                    .expect("every pair of a tetrahedron's vertices is an edge of the mesh");
+                k as u32 | if i > j { TRANSPOSED } else { 0 }
+            });
+            Element {
+                tet,
+                g: [g[1], g[2], g[3]],
+                volume,
+                lambda,
+                mu,
+                slot,
+            }
+        })
+        .collect()
+}
+
+/// Upper bound on the largest eigenvalue of `M⁻¹ K̂` for every choice of element
+/// rotations (rad²/s²), for the explicit substep.
+///
+/// `uᵀ K̂ u = Σ_e (R_eᵀ u_e)ᵀ K_e (R_eᵀ u_e) ≤ Σ_e κ_e |u_e|²` with `κ_e ≥ λ_max(K_e)`,
+/// so `uᵀ K̂ u ≤ Σ_i |u_i|² Σ_{e∋i} κ_e ≤ max_i (Σ_{e∋i} κ_e / m_i) uᵀ M u`. For
+/// `κ_e`: `uᵀ K_e u = V (λ (tr G)² + 2μ |sym G|²)` with `G = Σ_k u_k g_kᵀ`;
+/// `tr G = Σ_k u_k · g_k`, so `(tr G)² ≤ Σ_k |g_k|² Σ_k |u_k|²` (Cauchy–Schwarz), and
+/// `|sym G|² ≤ |G|² ≤ λ_max(Σ_k g_k g_kᵀ) Σ_k |u_k|²`, hence
+/// `κ_e = V (λ Σ_k |g_k|² + 2μ λ_max(Σ_k g_k g_kᵀ))`. Unlike a Gershgorin bound on
+/// `K`, it does not change when the elements turn.
+pub(super) fn max_eigenvalue_bound(elements: &[Element], mass: &[f64]) -> f64 {
+    let mut sum = vec![0.0; mass.len()];
+    for e in elements {
+        let g = e.gradients();
+        let gg: Matrix3<f64> = g.iter().map(|g| g * g.transpose()).sum();
+        let top = gg.symmetric_eigenvalues().max();
+        let kappa = e.volume * (e.lambda * gg.trace() + 2.0 * e.mu * top);
+        for &v in &e.tet {
+            sum[v as usize] += kappa;
+        }
+    }
+    sum.iter().zip(mass).map(|(s, m)| s / m).fold(0.0, f64::max)
+}
+
+/// Elastic energy `W = Σ_e V_e (½ λ (tr ε)² + μ ε:ε)`, `ε = sym(Rᵀ F) − I`, of the
+/// configuration `x`, J, with every rotation extracted afresh.
+pub(super) fn strain_energy(elements: &[Element], x: &[Point3<f64>]) -> f64 {
+    elements
+        .iter()
+        .map(|e| {
+            let f = e.deformation_gradient(x);
+            let mut q = UnitQuaternion::identity();
+            extract_rotation(&f, &mut q, COLD_ITERATIONS);
+            let eps = e.strain(q.to_rotation_matrix().matrix(), &f);
+            e.volume * (0.5 * e.lambda * eps.trace().powi(2) + e.mu * eps.component_mul(&eps).sum())
+        })
+        .sum()
+}
+
+/// The per-tick state of the corotational model: each element's rotation (the warm
+/// start of the next extraction), the rotated stiffness `K̂` and the offset `o`.
+/// Allocated once; [`update`](Self::update) and [`force`](Self::force) allocate
+/// nothing.
+#[derive(Clone, Debug)]
+pub struct Corotated {
+    rotation: Vec<UnitQuaternion<f64>>,
+    /// `K̂ = Σ_e R_e K_e R_eᵀ`, on the pattern of the model's stiffness, N/m.
+    pub tangent: BlockMatrix,
+    /// `o = Σ_e R_e K_e (R_eᵀ X_e − X_e)`, N.
+    pub offset: Vec<Vector3<f64>>,
+}
+
+impl Corotated {
+    /// The workspace of a corotational model at rest (`R = I`, `K̂ = K`, `o = 0`).
+    pub fn new(model: &ElasticModel) -> Self {
+        Corotated {
+            rotation: vec![UnitQuaternion::identity(); model.elements.len()],
+            tangent: model.stiffness.clone(),
+            offset: vec![Vector3::zeros(); model.vertex_count()],
+        }
+    }
+
+    /// Number of elements.
+    pub fn rotation_count(&self) -> usize {
+        self.rotation.len()
+    }
+
+    /// The rotation of element `e` as last extracted.
+    pub fn rotation(&self, e: usize) -> Matrix3<f64> {
+        *self.rotation[e].to_rotation_matrix().matrix()
+    }
+
+    /// Extracts every element's rotation at `x`, reassembles `K̂` and `o` with them,
+    /// and writes `out = K̂ u + o = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic
+    /// force at `x` (N).
+    pub fn update(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
+        out.iter_mut().for_each(|o| *o = Vector3::zeros());
+        self.offset.iter_mut().for_each(|o| *o = Vector3::zeros());
+        self.tangent
+            .block
+            .iter_mut()
+            .for_each(|b| *b = Matrix3::zeros());
+        for (e, q) in model.elements.iter().zip(&mut self.rotation) {
+            let f = e.deformation_gradient(x);
+            extract_rotation(&f, q, WARM_ITERATIONS);
+            let r = *q.to_rotation_matrix().matrix();
+            let g = e.gradients();
+            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+            let ro = e.volume * r * e.stress(&r);
+            let gh = g.map(|g| r * g);
+            for (&v, g) in e.tet.iter().zip(&g) {
+                out[v as usize] += rs * g;
+                self.offset[v as usize] += ro * g;
+            }
+            for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
+                let mut block = e.lambda * gh[a] * gh[b].transpose()
+                    + e.mu * gh[b] * gh[a].transpose()
+                    + Matrix3::identity() * (e.mu * g[a].dot(&g[b]));
+                block *= e.volume;
+                let k = (slot & !TRANSPOSED) as usize;
+                if slot & TRANSPOSED != 0 {
+                    self.tangent.block[k] += block.transpose();
+                } else {
+                    self.tangent.block[k] += block;
+                }
+            }
+        }
+    }
+
+    /// Extracts every element's rotation at `x` and writes
+    /// `out = Σ_e R_e K_e (R_eᵀ x_e − X_e)` (the negated elastic force, N), leaving
+    /// `K̂` and `o` as they were: what an explicit substep needs.
+    pub fn force(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
+        out.iter_mut().for_each(|o| *o = Vector3::zeros());
+        for (e, q) in model.elements.iter().zip(&mut self.rotation) {
+            let f = e.deformation_gradient(x);
+            extract_rotation(&f, q, WARM_ITERATIONS);
+            let r = *q.to_rotation_matrix().matrix();
+            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+            let g = e.gradients();
+            for k in 0..4 {
+                out[e.tet[k] as usize] += rs * g[k];
+            }
+        }
+    }
+}

@@ -1,0 +1,276 @@
+//! How much a server takes on at once: sessions, connections and concurrent
+//! replays, with defaults derived from the machine, and the `RESOURCE_EXHAUSTED`
+//! answer past each limit (naming the limit and the flag that sets it).
+//!
+//! The defaults, for a machine of `c` cores (`available_parallelism`), `m` bytes of
+//! memory (`MemTotal`) and a soft limit of `f` file descriptors (`RLIMIT_NOFILE`):
+//!
+//! - **sessions** = max(1, min(16·c, m / 64 MiB)). A default session ticks at
+//!   60 Hz; its tick, its recorder and the encoding of its frames for two 1 kHz
+//!   stations and an observer or two take a few percent of a core. The soak bench's
+//!   ramp (`cargo bench -p laparo-tests --bench soak -- --ramp`) on a 2-core machine,
+//!   with its clients on the same cores, held 32 sessions without a missed deadline
+//!   and missed at 40: 16 a core. A default session holds about 3.3 MiB (RSS) and
+//!   two threads (mechanics, recorder); 64 MiB each leaves room for sessions of
+//!   larger meshes on a small machine.
+//! - **connections** = max(16, min(8·sessions + 64, f − 128 − 2·sessions)). A
+//!   session has two stations and a few observers; 64 more for listing, replays
+//!   and tools. Each connection is a descriptor, each session holds up to two
+//!   (its recording, a mesh while it loads) and 128 are kept for the process's
+//!   other files, so that the limit refuses connections before `accept` runs out
+//!   of descriptors.
+//! - **replays** = max(1, min(32·c, m / 4 / 16 MiB)). A replay holds one
+//!   decompressed chunk (at most a few MiB) and a read-ahead of messages; its
+//!   reading runs in short bursts on the blocking pool, so what bounds it is memory
+//!   and the cores that decode: a quarter of the memory at 16 MiB each.
+
+use std::sync::Arc;
+
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
+use tonic::Status;
+
+/// Budget of memory per session in the default limit, bytes.
+const SESSION_MEMORY: u64 = 64 << 20;
+/// Budget of memory per replay in the default limit, bytes.
+const REPLAY_MEMORY: u64 = 16 << 20;
+/// Sessions per core in the default limit.
+const SESSIONS_PER_CORE: usize = 16;
+/// Replays per core in the default limit.
+const REPLAYS_PER_CORE: usize = 32;
+/// File descriptors kept for the process's own files.
+const RESERVED_FDS: u64 = 128;
+
+/// What the machine offers, as the defaults need it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Machine {
+    pub cores: usize,
+    pub memory_bytes: u64,
+    /// Soft `RLIMIT_NOFILE`.
+    pub fd_limit: u64,
+}
+
+impl Machine {
+    /// This machine (1 core, 1 GiB and 1024 descriptors where it cannot tell).
+    pub fn this() -> Self {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        // SAFETY: sysconf reads a system constant.
+        let (pages, page) = unsafe {
+            (
+                libc::sysconf(libc::_SC_PHYS_PAGES),
+                libc::sysconf(libc::_SC_PAGESIZE),
+            )
+        };
+        let memory_bytes = if pages > 0 && page > 0 {
+            pages as u64 * page as u64
+        } else {
+            1 << 30
+        };
+        let mut limit = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes into the struct given.
+        let fd_limit = if unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut limit) } == 0 {
+            limit.rlim_cur
+        } else {
+            1024
+        };
+        Machine {
+            cores,
+            memory_bytes,
+            fd_limit,
+        }
+    }
+}
+
+/// The connection default for `sessions` sessions and `fd_limit` descriptors.
+fn connections_for(sessions: usize, fd_limit: u64) -> usize {
+    let fds_left = fd_limit.saturating_sub(RESERVED_FDS.saturating_add(2 * sessions as u64));
+    sessions
+        .saturating_mul(8)
+        .saturating_add(64)
+        .min(usize::try_from(fds_left).unwrap_or(usize::MAX))
+        .max(16)
+}
+
+/// Limits on what a server takes on at once (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capacity {
+    /// Open sessions (`--max-sessions`).
+    pub sessions: usize,
+    /// Open connections (`--max-connections`).
+    pub connections: usize,
+    /// Replays streaming at once (`--max-replays`).
+    pub replays: usize,
+}
+
+impl Capacity {
+    /// The defaults for `machine` (formulas in the module documentation).
+    pub fn for_machine(machine: Machine) -> Self {
+        let cores = machine.cores.max(1);
+        let sessions = (SESSIONS_PER_CORE * cores)
+            .min(usize::try_from(machine.memory_bytes / SESSION_MEMORY).unwrap_or(usize::MAX))
+            .max(1);
+        let connections = connections_for(sessions, machine.fd_limit);
+        let replays = (REPLAYS_PER_CORE * cores)
+            .min(usize::try_from(machine.memory_bytes / 4 / REPLAY_MEMORY).unwrap_or(usize::MAX))
+            .max(1);
+        Capacity {
+            sessions,
+            connections,
+            replays,
+        }
+    }
+
+    /// These defaults with `sessions` sessions, and the connection default that
+    /// follows from it.
+    pub fn with_sessions(self, sessions: usize, machine: Machine) -> Self {
+        Capacity {
+            sessions,
+            connections: connections_for(sessions, machine.fd_limit),
+            replays: self.replays,
+        }
+    }
+
+    /// The defaults for this machine.
+    pub fn of_this_machine() -> Self {
+        Self::for_machine(Machine::this())
+    }
+}
+
+impl Default for Capacity {
+    fn default() -> Self {
+        Self::of_this_machine()
+    }
+}
+
+/// `RESOURCE_EXHAUSTED` for a new session when `open` of `limit` are open.
+pub fn too_many_sessions(limit: usize) -> Status {
+    Status::resource_exhausted(format!(
+        "the server runs {limit} sessions, its limit (--max-sessions): close one \
+         (CloseSession) or start the server with a higher --max-sessions"
+    ))
+}
+
+/// The replays a server streams at once: a permit each, held by the replay's
+/// task until its stream ends.
+#[derive(Clone, Debug)]
+pub struct ReplaySlots {
+    slots: Arc<Semaphore>,
+    limit: usize,
+}
+
+impl ReplaySlots {
+    pub fn new(limit: usize) -> Self {
+        ReplaySlots {
+            slots: Arc::new(Semaphore::new(limit)),
+            limit,
+        }
+    }
+
+    /// A slot, or `RESOURCE_EXHAUSTED` naming the limit and its flag.
+    pub fn take(&self) -> Result<OwnedSemaphorePermit, Status> {
+        self.slots.clone().try_acquire_owned().map_err(|_| {
+            Status::resource_exhausted(format!(
+                "the server streams {} replays at once, its limit (--max-replays): \
+                 try again when one ends, or start the server with a higher --max-replays",
+                self.limit
+            ))
+        })
+    }
+
+    /// Replays streaming now.
+    pub fn in_use(&self) -> usize {
+        self.limit - self.slots.available_permits()
+    }
+}
+
+impl Default for ReplaySlots {
+    fn default() -> Self {
+        Self::new(Capacity::default().replays)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GIB: u64 = 1 << 30;
+
+    #[test]
+    fn a_two_core_machine_holds_32_sessions_as_measured() {
+        let c = Capacity::for_machine(Machine {
+            cores: 2,
+            memory_bytes: 16 * GIB,
+            fd_limit: 1 << 20,
+        });
+        assert_eq!(c.sessions, 32);
+        assert_eq!(c.connections, 8 * 32 + 64);
+        assert_eq!(c.replays, 64);
+    }
+
+    #[test]
+    fn memory_bounds_sessions_and_replays_on_a_small_machine() {
+        let c = Capacity::for_machine(Machine {
+            cores: 8,
+            memory_bytes: GIB,
+            fd_limit: 1 << 20,
+        });
+        assert_eq!(c.sessions, 16, "1 GiB at 64 MiB a session");
+        assert_eq!(c.replays, 16, "a quarter of 1 GiB at 16 MiB a replay");
+        let c = Capacity::for_machine(Machine {
+            cores: 8,
+            memory_bytes: 512 << 20,
+            fd_limit: 1 << 20,
+        });
+        assert_eq!(c.sessions, 8);
+        assert_eq!(c.replays, 8);
+    }
+
+    #[test]
+    fn connections_stay_under_the_descriptor_limit() {
+        let c = Capacity::for_machine(Machine {
+            cores: 2,
+            memory_bytes: 16 * GIB,
+            fd_limit: 1024,
+        });
+        assert_eq!(c.connections, 8 * 32 + 64);
+        let c = Capacity::for_machine(Machine {
+            cores: 2,
+            memory_bytes: 16 * GIB,
+            fd_limit: 256,
+        });
+        assert_eq!(c.connections, 256 - 128 - 2 * 32);
+        // Even a tiny limit leaves a few connections, and never zero sessions.
+        let tiny = Capacity::for_machine(Machine {
+            cores: 0,
+            memory_bytes: 0,
+            fd_limit: 0,
+        });
+        assert_eq!(tiny.sessions, 1);
+        assert_eq!(tiny.replays, 1);
+        assert_eq!(tiny.connections, 16);
+    }
+
+    #[test]
+    fn a_replay_past_the_limit_is_refused_naming_the_flag_until_one_ends() {
+        let slots = ReplaySlots::new(2);
+        let a = slots.take().unwrap();
+        let _b = slots.take().unwrap();
+        let e = slots.take().unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+        assert!(e.message().contains("--max-replays"), "{}", e.message());
+        assert!(e.message().contains(" 2 "), "{}", e.message());
+        assert_eq!(slots.in_use(), 2);
+        drop(a);
+        assert!(slots.take().is_ok());
+    }
+
+    #[test]
+    fn the_session_refusal_names_the_limit_and_its_flag() {
+        let e = too_many_sessions(64);
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+        assert!(e.message().contains("64 sessions"));
+        assert!(e.message().contains("--max-sessions"));
+    }
+}

@@ -1,0 +1,255 @@
+//! A real `laparo-server`'s connections: closed when idle (a silent TCP connection,
+//! one that sent only the HTTP/2 preface), kept while a stream is open, refused
+//! past `--max-connections`, and out of file descriptors the accept loop waits
+//! instead of spinning a core, serving again once connections close.
+
+use std::ffi::OsStr;
+use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
+use std::net::TcpStream;
+use std::os::unix::process::CommandExt;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use laparo_proto::v1;
+
+mod common;
+use common::process::{Server, connect, free_port, spawn};
+
+/// The client preface every HTTP/2 connection starts with (RFC 9113 §3.4).
+const PREFACE: &[u8] = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n";
+
+/// Reads `conn` until the server closes it (EOF or reset); `false` if it is still
+/// open after `wait`.
+fn closed_by_server(conn: &mut TcpStream, wait: Duration) -> bool {
+    conn.set_read_timeout(Some(wait)).unwrap();
+    let mut buf = [0u8; 4096];
+    loop {
+        match conn.read(&mut buf) {
+            Ok(0) => return true,
+            Ok(_) => continue,
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                return false;
+            }
+            Err(_) => return true,
+        }
+    }
+}
+
+async fn list_scenes(port: u16) -> Result<usize, tonic::Status> {
+    let ch = tonic::transport::Endpoint::from_shared(format!("http://127.0.0.1:{port}"))
+        .unwrap()
+        .connect_timeout(Duration::from_secs(2))
+        .timeout(Duration::from_secs(2))
+        .connect()
+        .await
+        .map_err(|e| tonic::Status::unavailable(e.to_string()))?;
+    let scenes = v1::scenes_client::ScenesClient::new(ch)
+        .list_scenes(v1::ListScenesRequest {})
+        .await?
+        .into_inner()
+        .scenes;
+    Ok(scenes.len())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn connections_without_a_stream_are_closed_after_the_idle_timeout_and_streams_are_kept() {
+    let port = free_port();
+    let _server = spawn(
+        port,
+        &[
+            OsStr::new("--no-recording"),
+            OsStr::new("--idle-connection"),
+            OsStr::new("1"),
+        ],
+    );
+    let ch = connect(
+        &format!("http://127.0.0.1:{port}"),
+        Instant::now() + Duration::from_secs(30),
+    )
+    .await;
+    let session = v1::sessions_client::SessionsClient::new(ch.clone())
+        .create_session(v1::CreateSessionRequest {
+            scene: "default".into(),
+            idle_timeout_s: None,
+            record: Some(false),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let mut observe = v1::observe_client::ObserveClient::new(ch)
+        .observe(v1::ObserveRequest {
+            session_id: session.session_id,
+            frame_rate_hz: None,
+        })
+        .await
+        .unwrap()
+        .into_inner();
+
+    let mut silent = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let mut preface_only = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    preface_only.write_all(PREFACE).unwrap();
+    // The bound of the wait only turns a connection left open into a failure.
+    let wait = Duration::from_secs(20);
+    assert!(
+        closed_by_server(&mut silent, wait),
+        "silent connection kept"
+    );
+    assert!(
+        closed_by_server(&mut preface_only, wait),
+        "preface-only connection kept"
+    );
+    // The observer's connection, busy with its stream all this time, still is.
+    for _ in 0..10 {
+        observe
+            .message()
+            .await
+            .expect("the observe stream is still open")
+            .expect("and sends");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_connection_past_the_limit_is_closed_at_once_and_served_once_one_closes() {
+    let port = free_port();
+    let _server = spawn(
+        port,
+        &[
+            OsStr::new("--no-recording"),
+            OsStr::new("--max-connections"),
+            OsStr::new("2"),
+            OsStr::new("--idle-connection"),
+            OsStr::new("3600"),
+        ],
+    );
+    // Two connections: this channel's and `a`.
+    let ch = connect(
+        &format!("http://127.0.0.1:{port}"),
+        Instant::now() + Duration::from_secs(30),
+    )
+    .await;
+    let wait = Duration::from_secs(20);
+    let mut a = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    a.write_all(PREFACE).unwrap();
+    let mut over = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    assert!(
+        closed_by_server(&mut over, wait),
+        "a third connection was kept"
+    );
+    assert!(
+        list_scenes(port).await.is_err(),
+        "a call past the limit is refused"
+    );
+    assert!(
+        !closed_by_server(&mut a, Duration::from_millis(300)),
+        "the first two stay"
+    );
+    // The channel still works.
+    v1::scenes_client::ScenesClient::new(ch)
+        .list_scenes(v1::ListScenesRequest {})
+        .await
+        .unwrap();
+    drop(a);
+    let deadline = Instant::now() + wait;
+    loop {
+        match list_scenes(port).await {
+            Ok(n) => {
+                assert!(n >= 1);
+                break;
+            }
+            Err(e) => assert!(Instant::now() < deadline, "never served again: {e:?}"),
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// CPU time (user + system) of process `pid`, in clock ticks (`/proc/PID/stat`
+/// fields 14 and 15).
+fn cpu_ticks(pid: u32) -> u64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    // The command name (field 2) is in parentheses and may hold spaces.
+    let rest = &stat[stat.rfind(')').unwrap() + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // `rest` starts at field 3.
+    fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn out_of_file_descriptors_the_accept_loop_waits_and_serves_again_once_they_free() {
+    const FD_LIMIT: u64 = 64;
+    let port = free_port();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_laparo-server"));
+    command
+        .args(["--listen", &format!("127.0.0.1:{port}"), "--no-recording"])
+        // The connection limit above the descriptors: the fd limit is what binds.
+        .args(["--max-connections", "10000", "--idle-connection", "3600"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe; the child runs nothing else first.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: FD_LIMIT,
+                rlim_max: FD_LIMIT,
+            };
+            if libc::setrlimit(libc::RLIMIT_NOFILE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let mut child = command.spawn().unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let (lines_tx, lines) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            eprintln!("server: {line}");
+            let _ = lines_tx.send(line);
+        }
+    });
+    let server = Server(child);
+    let pid = server.0.id();
+    connect(
+        &format!("http://127.0.0.1:{port}"),
+        Instant::now() + Duration::from_secs(30),
+    )
+    .await;
+
+    // More connections than the process has descriptors: the kernel queues the
+    // ones the server cannot accept (the listen backlog is larger).
+    let mut held: Vec<TcpStream> = (0..FD_LIMIT + 16)
+        .map(|_| TcpStream::connect(("127.0.0.1", port)).unwrap())
+        .collect();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let line = lines
+            .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+            .expect("the server says it is out of file descriptors");
+        if line.contains("out of file descriptors") {
+            break;
+        }
+    }
+    // Out of descriptors with connections pending: a spinning loop burns a whole
+    // core (100 ticks a second); the backoff, a few accept calls a second.
+    let before = cpu_ticks(pid);
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let used = cpu_ticks(pid) - before;
+    assert!(
+        used <= 20,
+        "{used} ticks of CPU in 2 s out of descriptors: the accept loop spins"
+    );
+
+    held.clear();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        match list_scenes(port).await {
+            Ok(n) => {
+                assert!(n >= 1);
+                break;
+            }
+            Err(e) => assert!(Instant::now() < deadline, "never served again: {e:?}"),
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}

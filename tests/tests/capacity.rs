@@ -1,0 +1,173 @@
+//! What a server takes on at once: sessions and replays past their limits are
+//! refused with `RESOURCE_EXHAUSTED` naming the limit and its flag, and accepted
+//! again once one ends; slow replays, more than the blocking pool has threads,
+//! starve neither listing nor another replay.
+
+use std::time::Duration;
+
+use laparo_proto::v1;
+use laparo_proto::v1::recordings_client::RecordingsClient;
+use laparo_proto::v1::sessions_client::SessionsClient;
+use laparo_server::recording::Recording;
+use laparo_server::service::ServeConfig;
+use laparo_server::service::capacity::Capacity;
+use laparo_tests::recordings::{
+    record_press, recorded_messages, recordings_dir, replay_all, replay_request,
+};
+use laparo_tests::server::{TestServer, WAIT};
+use tonic::Code;
+
+fn limits(sessions: usize, replays: usize) -> Capacity {
+    Capacity {
+        sessions,
+        connections: 64,
+        replays,
+    }
+}
+
+fn create() -> v1::CreateSessionRequest {
+    v1::CreateSessionRequest {
+        scene: "default".into(),
+        idle_timeout_s: None,
+        record: Some(false),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_session_past_the_limit_is_refused_naming_the_flag_until_one_closes() {
+    let server = TestServer::start(ServeConfig {
+        capacity: limits(2, 4),
+        ..ServeConfig::default()
+    })
+    .await;
+    let mut sessions = SessionsClient::new(server.channel().await);
+    let first = sessions
+        .create_session(create())
+        .await
+        .unwrap()
+        .into_inner();
+    sessions.create_session(create()).await.unwrap();
+    let refused = sessions.create_session(create()).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    assert!(refused.message().contains("2 sessions"), "{refused:?}");
+    assert!(refused.message().contains("--max-sessions"), "{refused:?}");
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: first.session_id,
+            reason: "room for another".into(),
+        })
+        .await
+        .unwrap();
+    sessions.create_session(create()).await.unwrap();
+    server.shutdown().await.unwrap();
+}
+
+/// A replay at the slowest speed, open until dropped, once its scene has come.
+async fn slow_replay(
+    ch: &tonic::transport::Channel,
+    name: &str,
+) -> Result<tonic::Streaming<v1::ObserveMessage>, tonic::Status> {
+    let mut stream = RecordingsClient::new(ch.clone())
+        .replay(replay_request(name, Some(0.01), None))
+        .await?
+        .into_inner();
+    let first = tokio::time::timeout(WAIT, stream.message())
+        .await
+        .expect("the scene comes")
+        .unwrap()
+        .unwrap();
+    assert!(matches!(
+        first.kind,
+        Some(v1::observe_message::Kind::Scene(_))
+    ));
+    Ok(stream)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replay_past_the_limit_is_refused_naming_the_flag_until_one_ends() {
+    let dir = recordings_dir("replay-limit");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        capacity: limits(4, 2),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let rec = record_press(&ch, &dir, 0.5).await;
+    let name = rec.file.file_name().unwrap().to_str().unwrap().to_string();
+    let a = slow_replay(&ch, &name).await.unwrap();
+    let _b = slow_replay(&ch, &name).await.unwrap();
+    let refused = slow_replay(&ch, &name).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    assert!(refused.message().contains("2 replays"), "{refused:?}");
+    assert!(refused.message().contains("--max-replays"), "{refused:?}");
+    // Once a client goes, its slot is free (when the server has seen it go).
+    drop(a);
+    tokio::time::timeout(WAIT, async {
+        loop {
+            match slow_replay(&ch, &name).await {
+                Ok(s) => return s,
+                Err(e) if e.code() == Code::ResourceExhausted => {
+                    tokio::time::sleep(Duration::from_millis(50)).await
+                }
+                Err(e) => panic!("{e:?}"),
+            }
+        }
+    })
+    .await
+    .expect("a slot frees up");
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// More paced replays than the blocking pool has threads: had each held a thread
+/// while it waits for its client, listing (which reads on the pool) would wait
+/// for ever behind them.
+#[test]
+fn slow_replays_beyond_the_blocking_pool_starve_neither_listing_nor_another_replay() {
+    const BLOCKING_THREADS: usize = 2;
+    const SLOW: usize = 4 * BLOCKING_THREADS;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .max_blocking_threads(BLOCKING_THREADS)
+        .enable_all()
+        .build()
+        .unwrap();
+    runtime.block_on(async {
+        let dir = recordings_dir("slow-replays");
+        let server = TestServer::start(ServeConfig {
+            recordings: Some(dir.clone()),
+            capacity: limits(4, 64),
+            ..ServeConfig::default()
+        })
+        .await;
+        let ch = server.channel().await;
+        let rec = record_press(&ch, &dir, 0.5).await;
+        let name = rec.file.file_name().unwrap().to_str().unwrap().to_string();
+        let mut slow = Vec::new();
+        for _ in 0..SLOW {
+            slow.push(slow_replay(&ch, &name).await.unwrap());
+        }
+        // Listing answers (the bound only turns a starved pool into a failure).
+        let listed = tokio::time::timeout(
+            WAIT,
+            RecordingsClient::new(ch.clone()).list_recordings(v1::ListRecordingsRequest {}),
+        )
+        .await
+        .expect("listing is not starved by slow replays")
+        .unwrap()
+        .into_inner()
+        .recordings;
+        assert_eq!(listed.len(), 1);
+        // Another replay, at the fastest speed, sends the whole file and ends.
+        let (got, end) = replay_all(&ch, None, replay_request(&name, Some(100.0), None))
+            .await
+            .unwrap();
+        end.unwrap();
+        let file = recorded_messages(&Recording::open(&rec.file).unwrap());
+        assert_eq!(got.len(), 1 + file.len(), "the scene and every message");
+        drop(slow);
+        server.shutdown().await.unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+    });
+}

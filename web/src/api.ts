@@ -1,0 +1,59 @@
+// The console's gRPC-web clients: the laparo.v1 contract over @connectrpc's
+// gRPC-web transport, to the server the page came from, with the bearer token.
+import { Code, ConnectError, createClient, type Interceptor } from "@connectrpc/connect";
+import { createGrpcWebTransport } from "@connectrpc/connect-web";
+import { Observe, Recordings, Scenes, Sessions, Station } from "./gen/laparo/v1/services_pb";
+import { token } from "./token";
+
+const bearer: Interceptor = (next) => async (req) => {
+  const t = token();
+  if (t) req.header.set("authorization", `Bearer ${t}`);
+  return next(req);
+};
+
+const transport = createGrpcWebTransport({
+  baseUrl: location.origin,
+  interceptors: [bearer],
+});
+
+export const scenes = createClient(Scenes, transport);
+export const sessions = createClient(Sessions, transport);
+export const station = createClient(Station, transport);
+export const observe = createClient(Observe, transport);
+export const recordings = createClient(Recordings, transport);
+
+/** What went wrong with a call, in words, and whether retrying can help. */
+export interface Failure {
+  code: Code | undefined;
+  text: string;
+  /** A transport failure (server gone, restarting): try again later. */
+  retry: boolean;
+  /** The token is wrong or missing. */
+  auth: boolean;
+}
+
+export function failure(e: unknown): Failure {
+  if (e instanceof DOMException && e.name === "AbortError") {
+    return { code: Code.Canceled, text: "cancelled", retry: false, auth: false };
+  }
+  const err = ConnectError.from(e);
+  const text = err.rawMessage || Code[err.code] || String(e);
+  switch (err.code) {
+    case Code.Unauthenticated:
+      return { code: err.code, text: `wrong or missing token: ${text}`, retry: false, auth: true };
+    case Code.PermissionDenied:
+      return { code: err.code, text: `not allowed with this token: ${text}`, retry: false, auth: true };
+    case Code.NotFound:
+      return { code: err.code, text: `not found: ${text}`, retry: false, auth: false };
+    case Code.Unavailable:
+    case Code.Unknown:
+    case Code.Internal:
+    case Code.DeadlineExceeded:
+    case Code.Aborted:
+      return { code: err.code, text: `connection lost: ${text}`, retry: true, auth: false };
+    default:
+      return { code: err.code, text, retry: false, auth: false };
+  }
+}
+
+export { Code };

@@ -1,0 +1,341 @@
+// The live view of a session: observing (Observe.Observe) or driving instruments
+// (Station.Attach + Station.SendPoses, gRPC-web's form of Station.Join). The
+// stream is read into "newest" slots and drawn once per animation frame, so a
+// fast stream never queues draws; a lost connection is said and retried with
+// backoff; a wrong token, a closed or unknown session end the view with a notice.
+import { create } from "@bufbuild/protobuf";
+import { Code, failure, observe, station } from "./api";
+import { Driver, M_PER_WHEEL, RAD_PER_PIXEL, stick } from "./drive";
+import { DevicePoseSchema } from "./gen/laparo/v1/station_pb";
+import { EventKind } from "./gen/laparo/v1/event_pb";
+import type { Event } from "./gen/laparo/v1/event_pb";
+import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
+import type { SceneDescription } from "./gen/laparo/v1/scene_pb";
+import { Role } from "./gen/laparo/v1/session_pb";
+import { backoff, el, notice, setConnection, sleep } from "./status";
+import { SceneView } from "./view/scene3d";
+import { Gauges } from "./view/gauges";
+
+export interface LiveOptions {
+  sessionId: string;
+  /** Instruments to drive; empty: observe. */
+  instruments: string[];
+}
+
+/** Where the tip starts, m before the liver's centre: outside its surface. */
+const STANDOFF_FRACTION_OF_RADIUS = 1.0;
+
+export function live(root: HTMLElement, options: LiveOptions, signal: AbortSignal): void {
+  const driving = options.instruments.length > 0;
+  const viewport = el("div", { class: "viewport", id: "viewport" });
+  const hud = el("div", { class: "status", id: "hud" });
+  const gauges = new Gauges();
+  const events = el("ul", { id: "events" });
+  const scopeButton = el("button", { id: "scope", type: "button" }, "laparoscope");
+  const side = el(
+    "div",
+    { class: "side" },
+    el("h3", {}, driving ? `driving ${options.instruments.join(", ")}` : "observing"),
+    el("p", {}, `session ${options.sessionId}`),
+    gauges.root,
+    el("p", { class: "controls" }, scopeButton),
+    driving ? el("p", {}, "drag: pivot about the trocar · wheel: insert · Q/E: roll · right-drag: orbit · gamepad: sticks, triggers, shoulders") : "",
+    hud,
+    el("h4", {}, "events"),
+    events,
+  );
+  const page = el("div", { class: "live", id: "live", "data-session": options.sessionId, "data-mode": driving ? "drive" : "observe" }, viewport, side);
+  root.replaceChildren(page);
+  const view = new SceneView(viewport);
+  signal.addEventListener("abort", () => view.dispose());
+  scopeButton.addEventListener("click", () => {
+    view.useScope = !view.useScope;
+    view.redraw();
+  });
+
+  // Newest of each, set by the stream, used by the frame loop.
+  let surface: SurfaceFrame | null = null;
+  const states = new Map<string, InstrumentState>();
+  let scene: SceneDescription | null = null;
+  const drivers = new Map<string, Driver>();
+  let handle = "";
+  let sequence = 0n;
+  const sentAt = new Map<string, { seq: bigint; t: number }>();
+  const stats = { tick: 0n, frames: 0, skipped: 0, ticksPerFrame: 1, rate: 0, latencyMs: NaN, firstFrameMs: NaN };
+  let rateWindow: { t: number; tick: bigint } | null = null;
+  let sending = false;
+  let active = false;
+
+  function onScene(desc: SceneDescription, frameRateHz: number): void {
+    scene = desc;
+    view.setScene(desc);
+    gauges.set(desc.instruments.map((i) => i.name));
+    const mech = desc.summary?.mechanicsRateHz ?? 60;
+    stats.ticksPerFrame = Math.max(1, Math.round(mech / frameRateHz));
+    page.dataset.scene = desc.summary?.name ?? "";
+    drivers.clear();
+    const positions = desc.restSurface?.positions ?? [];
+    let cx = 0, cy = 0, cz = 0;
+    const n = positions.length / 3;
+    for (let i = 0; i < positions.length; i += 3) {
+      cx += positions[i] / n;
+      cy += positions[i + 1] / n;
+      cz += positions[i + 2] / n;
+    }
+    let radius = 0;
+    for (let i = 0; i < positions.length; i += 3) {
+      radius = Math.max(radius, Math.hypot(positions[i] - cx, positions[i + 1] - cy, positions[i + 2] - cz));
+    }
+    for (const d of desc.instruments) {
+      if (options.instruments.includes(d.name)) {
+        drivers.set(d.name, new Driver(d, { x: cx, y: cy, z: cz }, STANDOFF_FRACTION_OF_RADIUS * radius));
+      }
+    }
+  }
+
+  function onSurface(f: SurfaceFrame): void {
+    if (surface && f.tick > surface.tick + BigInt(stats.ticksPerFrame)) {
+      stats.skipped += Number(f.tick - surface.tick) / stats.ticksPerFrame - 1;
+    }
+    surface = f;
+    stats.frames++;
+    const now = performance.now();
+    if (!rateWindow) rateWindow = { t: now, tick: f.tick };
+    else if (now - rateWindow.t > 1000) {
+      stats.rate = (Number(f.tick - rateWindow.tick) * 1000) / (now - rateWindow.t);
+      rateWindow = { t: now, tick: f.tick };
+    }
+  }
+
+  function onState(s: InstrumentState): void {
+    states.set(s.instrument, s);
+    const sent = sentAt.get(s.instrument);
+    if (sent && s.poseSequence !== undefined && s.poseSequence >= sent.seq) {
+      stats.latencyMs = performance.now() - sent.t;
+      sentAt.delete(s.instrument);
+    }
+  }
+
+  function onEvent(e: Event): void {
+    const item = el("li", {}, `${e.simTimeS.toFixed(2)} s ${EventKind[e.kind] ?? e.kind} ${e.instrument ?? ""} ${e.detail}`);
+    events.prepend(item);
+    while (events.childElementCount > 30) events.lastElementChild?.remove();
+    if (e.kind === EventKind.SESSION_CLOSING) closed = `session ${options.sessionId} closed: ${e.detail}`;
+  }
+
+  let closed: string | null = null;
+
+  async function sendPoses(): Promise<void> {
+    if (!handle || sending || drivers.size === 0) return;
+    sending = true;
+    try {
+      const poses = [];
+      const t = performance.now();
+      for (const [name, d] of drivers) {
+        sequence++;
+        const p = d.pose();
+        poses.push(create(DevicePoseSchema, { instrument: name, pose: { tip: p.tip, axis: p.axis }, deviceTimeS: t / 1000, sequence }));
+        if (!sentAt.has(name)) sentAt.set(name, { seq: sequence, t });
+      }
+      await station.sendPoses({ handle, poses }, { signal });
+    } catch (e) {
+      const f = failure(e);
+      if (f.code !== undefined && !signal.aborted) notice(`poses not sent: ${f.text}`);
+    } finally {
+      sending = false;
+    }
+  }
+
+  // Input: mouse drag pivots the first instrument driven (shift: the second),
+  // wheel inserts, Q/E roll. Right-drag orbits (OrbitControls).
+  view.controls.mouseButtons = driving
+    ? { LEFT: null as unknown as never, MIDDLE: 1, RIGHT: 0 } // RIGHT: ROTATE, MIDDLE: DOLLY
+    : view.controls.mouseButtons;
+  view.controls.enableZoom = !driving;
+  const canvas = view.renderer.domElement;
+  let dragging: { x: number; y: number } | null = null;
+  const target = (shift: boolean) => [...drivers.values()][shift && drivers.size > 1 ? 1 : 0];
+  if (driving) {
+    canvas.addEventListener("pointerdown", (e) => {
+      if (e.button === 0) dragging = { x: e.clientX, y: e.clientY };
+    });
+    window.addEventListener("pointerup", () => (dragging = null), { signal });
+    canvas.addEventListener("pointermove", (e) => {
+      if (!dragging) return;
+      target(e.shiftKey)?.pivot(-(e.clientX - dragging.x) * RAD_PER_PIXEL, -(e.clientY - dragging.y) * RAD_PER_PIXEL);
+      dragging = { x: e.clientX, y: e.clientY };
+    });
+    canvas.addEventListener(
+      "wheel",
+      (e) => {
+        e.preventDefault();
+        target(e.shiftKey)?.insert(e.deltaY * M_PER_WHEEL);
+      },
+      { passive: false },
+    );
+    window.addEventListener(
+      "keydown",
+      (e) => {
+        const d = target(e.shiftKey);
+        if (!d) return;
+        if (e.key === "q" || e.key === "Q") d.roll -= 0.1;
+        if (e.key === "e" || e.key === "E") d.roll += 0.1;
+      },
+      { signal },
+    );
+  }
+
+  function gamepad(): void {
+    const pad = navigator.getGamepads?.().find((g) => g && g.connected);
+    if (!pad || drivers.size === 0) return;
+    const list = [...drivers.values()];
+    const [l, r] = [list[0], list[1] ?? list[0]];
+    const RATE = 0.02;
+    l.pivot(-stick(pad.axes[0] ?? 0) * RATE, -stick(pad.axes[1] ?? 0) * RATE);
+    if (list[1]) r.pivot(-stick(pad.axes[2] ?? 0) * RATE, -stick(pad.axes[3] ?? 0) * RATE);
+    const b = (i: number) => pad.buttons[i]?.value ?? 0;
+    l.insert((b(6) - (pad.buttons[4]?.pressed && pad.buttons[6]?.pressed ? 2 * b(6) : 0)) * 0.0005);
+    r.insert(b(7) * 0.0005 * (list[1] ? 1 : 0));
+    if (pad.buttons[4]?.pressed) l.roll -= 0.05;
+    if (pad.buttons[5]?.pressed) r.roll += 0.05;
+    // Vibration growing with the force, where the pad has an actuator.
+    let force = 0;
+    for (const name of drivers.keys()) force = Math.max(force, states.get(name)?.force?.magnitudeN ?? 0);
+    const actuator = (pad as Gamepad & { vibrationActuator?: { playEffect?: (t: string, p: object) => Promise<unknown> } }).vibrationActuator;
+    if (force > 0.05 && actuator?.playEffect) {
+      actuator.playEffect("dual-rumble", { duration: 50, strongMagnitude: Math.min(1, force / 5), weakMagnitude: Math.min(1, force / 2) }).catch(() => {});
+    }
+  }
+
+  function frame(): void {
+    if (signal.aborted) return;
+    requestAnimationFrame(frame);
+    if (driving && active) {
+      gamepad();
+      void sendPoses();
+    }
+    if (surface) {
+      view.setSurface(surface.positions);
+      stats.tick = surface.tick;
+      surface = null;
+    }
+    for (const s of states.values()) {
+      view.setInstrument(s);
+      gauges.update(s, drivers.has(s.instrument));
+    }
+    states.clear();
+    if (view.draw() && scene && Number.isNaN(stats.firstFrameMs) && view.drawn > 0) {
+      stats.firstFrameMs = performance.now();
+      page.dataset.firstFrameMs = stats.firstFrameMs.toFixed(0);
+    }
+    page.dataset.tick = String(stats.tick);
+    page.dataset.frames = String(stats.frames);
+    page.dataset.drawn = String(view.drawn);
+    page.dataset.maxDisplacementMm = (view.maxDisplacement * 1000).toFixed(3);
+    page.dataset.surfaceChangeMm = (view.maxChange * 1000).toFixed(3);
+    const roll = [...drivers.entries()].map(([n, d]) => `${n} roll ${((d.roll * 180) / Math.PI).toFixed(0)}°`).join(" ");
+    hud.textContent =
+      `tick ${stats.tick} · mechanics ${stats.rate.toFixed(1)} Hz · latency ${Number.isNaN(stats.latencyMs) ? "–" : stats.latencyMs.toFixed(0) + " ms"}` +
+      ` · frames ${stats.frames} · skipped ${Math.round(stats.skipped)} · max displacement ${(view.maxDisplacement * 1000).toFixed(1)} mm ${roll}`;
+  }
+  requestAnimationFrame(frame);
+
+  void (async () => {
+    for (let attempt = 0; !signal.aborted; attempt++) {
+      setConnection(attempt === 0 ? "connecting" : "reconnecting");
+      try {
+        if (driving) {
+          const stream = station.attach(
+            { sessionId: options.sessionId, role: Role.TRAINEE, instruments: options.instruments, clientName: "browser console" },
+            { signal },
+          );
+          for await (const m of stream) {
+            if (m.kind.case === "attached") {
+              handle = m.kind.value.handle;
+              continue;
+            }
+            const k = m.kind.value?.kind;
+            if (!k) continue;
+            switch (k.case) {
+              case "joined":
+                if (k.value.scene) onScene(k.value.scene, k.value.surfaceFrameRateHz);
+                active = true;
+                attempt = 0;
+                notice(null);
+                setConnection("live");
+                break;
+              case "surfaceFrame":
+                onSurface(k.value);
+                break;
+              case "instrumentState":
+                onState(k.value);
+                break;
+              case "event":
+                onEvent(k.value);
+                break;
+              case "error":
+                notice(`pose rejected: ${k.value.message}`);
+                break;
+            }
+          }
+        } else {
+          for await (const m of observe.observe({ sessionId: options.sessionId }, { signal })) {
+            const k = m.kind;
+            switch (k.case) {
+              case "scene":
+                onScene(k.value, k.value.summary?.mechanicsRateHz ?? 60);
+                attempt = 0;
+                notice(null);
+                setConnection("live");
+                break;
+              case "surfaceFrame":
+                onSurface(k.value);
+                break;
+              case "instrumentState":
+                onState(k.value);
+                break;
+              case "event":
+                onEvent(k.value);
+                break;
+            }
+          }
+        }
+        if (closed) break;
+        // The stream ended without a reason: the server went away; try again.
+        throw new Error("the stream ended");
+      } catch (e) {
+        active = false;
+        handle = "";
+        if (signal.aborted) return;
+        if (closed) break;
+        const f = e instanceof Error && e.message === "the stream ended" ? { text: "the stream ended", retry: true, auth: false, code: undefined } : failure(e);
+        // The server ends a closing session's streams with UNAVAILABLE and
+        // "session closed: reason", possibly before the SESSION_CLOSING event.
+        const reason = /session closed: (.*)/.exec(f.text);
+        if (reason) {
+          closed = `session ${options.sessionId} closed: ${reason[1]}`;
+          break;
+        }
+        if (f.code === Code.NotFound) {
+          // Gone while away (closed, idle, or the server restarted without it).
+          closed = `session ${options.sessionId} is closed or does not exist (${f.text})`;
+          break;
+        }
+        if (!f.retry) {
+          setConnection("error", f.text);
+          notice(f.auth ? `${f.text} — enter a token above` : f.text);
+          page.dataset.error = f.text;
+          return;
+        }
+        const wait = backoff(attempt);
+        setConnection("reconnecting", `${f.text}; again in ${(wait / 1000).toFixed(1)} s`);
+        notice(`${f.text}; reconnecting in ${(wait / 1000).toFixed(1)} s`);
+        await sleep(wait, signal);
+      }
+    }
+    if (closed) {
+      setConnection("ended", closed);
+      notice(closed);
+    }
+  })();
+}

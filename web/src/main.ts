@@ -1,0 +1,48 @@
+// The laparo console: one page, routed by the URL's hash.
+//   #/                      sessions, scenes, recordings
+//   #/live/ID               observe session ID
+//   #/live/ID?drive=a,b     drive instruments a and b of session ID
+//   #/replay/FILE           replay a recording
+import "./style.css";
+import { live } from "./live";
+import { replay } from "./replay";
+import { sessionsPage } from "./sessions";
+import { notice, setConnection } from "./status";
+import { setToken, token } from "./token";
+
+let current: AbortController | null = null;
+
+function route(): void {
+  current?.abort();
+  current = new AbortController();
+  const signal = current.signal;
+  notice(null);
+  delete document.body.dataset.error;
+  setConnection("idle");
+  const app = document.getElementById("app")!;
+  const [path, query = ""] = location.hash.replace(/^#/, "").split("?");
+  const params = new URLSearchParams(query);
+  const parts = path.split("/").filter(Boolean).map(decodeURIComponent);
+  if (parts[0] === "live" && parts[1]) {
+    const drive = params.get("drive");
+    live(app, { sessionId: parts[1], instruments: drive ? drive.split(",").filter(Boolean) : [] }, signal);
+  } else if (parts[0] === "replay" && parts[1]) {
+    replay(app, parts[1], signal);
+  } else {
+    sessionsPage(app, signal);
+  }
+}
+
+const input = document.getElementById("token") as HTMLInputElement;
+input.value = token();
+document.getElementById("token-form")!.addEventListener("submit", (e) => {
+  e.preventDefault();
+  setToken(input.value.trim());
+  route();
+});
+window.addEventListener("hashchange", route);
+// Nothing may fail silently: an error nobody caught is said on the page (and
+// still reported to the browser, where the tests see it).
+window.addEventListener("unhandledrejection", (e) => notice(`unexpected error: ${e.reason}`));
+window.addEventListener("error", (e) => notice(`unexpected error: ${e.message}`));
+route();

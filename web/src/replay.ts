@@ -1,0 +1,146 @@
+// The replay page: a recording through Recordings.Replay — play, pause, speed,
+// seek, recorded or re-simulated — drawn as the live view draws, with |force|
+// over time beside it. Pausing ends the stream; playing again (or seeking, or
+// changing the speed or mode) opens a new one from the time reached.
+import { failure, recordings } from "./api";
+import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
+import { ReplayMode } from "./gen/laparo/v1/recording_pb";
+import { ForcePlot } from "./view/plot";
+import { SceneView } from "./view/scene3d";
+import { Gauges } from "./view/gauges";
+import { el, notice, setConnection } from "./status";
+
+export function replay(root: HTMLElement, file: string, signal: AbortSignal): void {
+  const viewport = el("div", { class: "viewport", id: "viewport" });
+  const play = el("button", { id: "play", type: "button" }, "play");
+  const pause = el("button", { id: "pause", type: "button" }, "pause");
+  const speed = el("select", { id: "speed" }, ...["0.25", "0.5", "1", "2", "4", "10"].map((s) => el("option", { value: s }, `${s}×`)));
+  speed.value = "1";
+  const resim = el("input", { id: "resimulate", type: "checkbox" });
+  const seek = el("input", { id: "seek", type: "range", min: "0", max: "1", step: "0.01", value: "0" });
+  const time = el("span", { id: "time" }, "0.0 s");
+  const plot = new ForcePlot();
+  const gauges = new Gauges();
+  const page = el(
+    "div",
+    { class: "live", id: "replay", "data-file": file, "data-state": "loading" },
+    viewport,
+    el(
+      "div",
+      { class: "side" },
+      el("h3", {}, `replay ${file}`),
+      el("p", { class: "controls" }, play, pause, speed, el("label", {}, resim, " re-simulated")),
+      el("p", {}, seek, " ", time),
+      gauges.root,
+      el("h4", {}, "|force| over time"),
+      plot.canvas,
+    ),
+  );
+  root.replaceChildren(page);
+  const view = new SceneView(viewport);
+  signal.addEventListener("abort", () => view.dispose());
+
+  let duration = 0;
+  let at = 0; // simulated time reached, s
+  let stream: AbortController | null = null;
+  let surface: SurfaceFrame | null = null;
+  const states = new Map<string, InstrumentState>();
+  let haveScene = false;
+
+  void recordings
+    .listRecordings({}, { signal })
+    .then((r) => {
+      duration = r.recordings.find((x) => x.file === file)?.durationS ?? 0;
+      seek.max = String(duration);
+      plot.setDuration(duration);
+    })
+    .catch((e) => notice(`listing recordings: ${failure(e).text}`));
+
+  function start(from: number): void {
+    stream?.abort();
+    const mine = new AbortController();
+    stream = mine;
+    signal.addEventListener("abort", () => mine.abort());
+    page.dataset.state = "playing";
+    setConnection("connecting");
+    void (async () => {
+      try {
+        const messages = recordings.replay(
+          {
+            file,
+            speed: Number(speed.value),
+            startOffsetS: from,
+            mode: resim.checked ? ReplayMode.RESIMULATE : ReplayMode.RECORDED,
+          },
+          { signal: mine.signal },
+        );
+        for await (const m of messages) {
+          const k = m.kind;
+          if (k.case === "scene") {
+            if (!haveScene) view.setScene(k.value);
+            gauges.set(k.value.instruments.map((i) => i.name));
+            haveScene = true;
+            setConnection("live");
+          } else if (k.case === "surfaceFrame") {
+            surface = k.value;
+            at = k.value.simTimeS;
+          } else if (k.case === "instrumentState") {
+            states.set(k.value.instrument, k.value);
+            plot.add(k.value.instrument, k.value.simTimeS, k.value.force?.magnitudeN ?? 0);
+          }
+        }
+        if (mine === stream) {
+          page.dataset.state = "ended";
+          setConnection("ended", "the recording played to its end");
+        }
+      } catch (e) {
+        if (mine.signal.aborted) return;
+        const f = failure(e);
+        page.dataset.state = "error";
+        page.dataset.error = f.text;
+        setConnection("error", f.text);
+        notice(`replay: ${f.text}`);
+      }
+    })();
+  }
+
+  play.addEventListener("click", () => start(at >= duration && duration > 0 ? 0 : at));
+  pause.addEventListener("click", () => {
+    stream?.abort();
+    stream = null;
+    page.dataset.state = "paused";
+    setConnection("idle", "paused");
+  });
+  const restart = () => {
+    if (stream) start(at);
+  };
+  speed.addEventListener("change", restart);
+  resim.addEventListener("change", restart);
+  seek.addEventListener("change", () => {
+    at = Number(seek.value);
+    plot.clearAfter(at);
+    start(at);
+  });
+
+  function frame(): void {
+    if (signal.aborted) return;
+    requestAnimationFrame(frame);
+    if (surface) {
+      view.setSurface(surface.positions);
+      surface = null;
+    }
+    for (const s of states.values()) {
+      view.setInstrument(s);
+      gauges.update(s, false);
+    }
+    states.clear();
+    view.draw();
+    if (document.activeElement !== seek) seek.value = String(at);
+    time.textContent = `${at.toFixed(2)} / ${duration.toFixed(2)} s`;
+    page.dataset.time = at.toFixed(3);
+    page.dataset.drawn = String(view.drawn);
+    plot.draw(at);
+  }
+  requestAnimationFrame(frame);
+  start(0);
+}

@@ -1,0 +1,223 @@
+// The 3D view: the liver as it streams (smooth shading, normals recomputed each
+// frame, coloured by displacement from rest), the instruments as cylinders from
+// the tip to the trocar, the trocars, a force arrow per instrument (10 mm per N,
+// as in the recordings' Foxglove scene), an orbit camera and a laparoscope
+// camera looking from a camera port between the trocars.
+import * as THREE from "three";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import type { SceneDescription } from "../gen/laparo/v1/scene_pb";
+import type { InstrumentState } from "../gen/laparo/v1/frame_pb";
+
+/** Liver tissue at rest, and where displacement takes it (at DISPLACEMENT_FULL_M; lighter, still liver-red). */
+const LIVER = new THREE.Color(0x9c3d2c);
+const DISPLACED = new THREE.Color(0xe07a50);
+/** Displacement drawn in the full highlight colour, m: the sag under gravity plus a firm press. */
+const DISPLACEMENT_FULL_M = 0.02;
+/** Force arrows: 10 mm per newton. */
+const ARROW_M_PER_N = 0.01;
+
+interface InstrumentView {
+  shaft: THREE.Mesh;
+  trocar: THREE.Mesh;
+  arrow: THREE.ArrowHelper;
+  trocarAt: THREE.Vector3;
+}
+
+export class SceneView {
+  readonly renderer: THREE.WebGLRenderer;
+  readonly scene = new THREE.Scene();
+  readonly orbit: THREE.PerspectiveCamera;
+  readonly scope: THREE.PerspectiveCamera;
+  readonly controls: OrbitControls;
+  useScope = false;
+  /** Largest displacement of any surface vertex from rest in the last frame, m. */
+  maxDisplacement = 0;
+  /** Largest distance of any surface vertex from where the first frame shown
+   * had it, m: what the instruments moved since the view opened (the sag under
+   * gravity is in the first frame already). */
+  maxChange = 0;
+  /** Frames drawn (for the tests and the measurements). */
+  drawn = 0;
+  private liver: THREE.Mesh | null = null;
+  private rest: Float32Array = new Float32Array();
+  private first: Float32Array | null = null;
+  private instruments = new Map<string, InstrumentView>();
+  private center = new THREE.Vector3();
+  private dirty = true;
+
+  constructor(readonly container: HTMLElement) {
+    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    this.renderer.setClearColor(0x101418);
+    container.append(this.renderer.domElement);
+    this.orbit = new THREE.PerspectiveCamera(40, 1, 0.001, 10);
+    this.scope = new THREE.PerspectiveCamera(70, 1, 0.001, 10);
+    this.controls = new OrbitControls(this.orbit, this.renderer.domElement);
+    this.controls.addEventListener("change", () => (this.dirty = true));
+    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.6));
+    const key = new THREE.DirectionalLight(0xffffff, 1.6);
+    key.position.set(0.3, 0.5, 0.6);
+    this.scene.add(key);
+    new ResizeObserver(() => this.resize()).observe(container);
+    this.resize();
+  }
+
+  resize(): void {
+    const w = Math.max(1, this.container.clientWidth);
+    const h = Math.max(1, this.container.clientHeight);
+    this.renderer.setSize(w, h, false);
+    for (const c of [this.orbit, this.scope]) {
+      c.aspect = w / h;
+      c.updateProjectionMatrix();
+    }
+    this.dirty = true;
+  }
+
+  /** Builds the liver, instruments and trocars of a scene; frames the camera. */
+  setScene(desc: SceneDescription): void {
+    if (this.liver) {
+      this.scene.remove(this.liver);
+      this.liver.geometry.dispose();
+    }
+    for (const v of this.instruments.values()) this.scene.remove(v.shaft, v.trocar, v.arrow);
+    this.instruments.clear();
+    const surface = desc.restSurface;
+    this.rest = Float32Array.from(surface?.positions ?? []);
+    this.first = null;
+    this.maxChange = 0;
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.BufferAttribute(this.rest.slice(), 3).setUsage(THREE.DynamicDrawUsage));
+    const colors = new Float32Array(this.rest.length);
+    for (let i = 0; i < colors.length; i += 3) LIVER.toArray(colors, i);
+    geometry.setAttribute("color", new THREE.BufferAttribute(colors, 3).setUsage(THREE.DynamicDrawUsage));
+    geometry.setIndex(Array.from(surface?.triangles ?? []));
+    geometry.computeVertexNormals();
+    geometry.computeBoundingSphere();
+    this.liver = new THREE.Mesh(
+      geometry,
+      new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.55, metalness: 0.05, side: THREE.DoubleSide }),
+    );
+    this.scene.add(this.liver);
+    const sphere = geometry.boundingSphere ?? new THREE.Sphere(new THREE.Vector3(), 0.1);
+    this.center.copy(sphere.center);
+    const r = Math.max(sphere.radius, 0.01);
+    this.orbit.position.set(this.center.x + 0.4 * r, this.center.y + 1.2 * r, this.center.z + 3.2 * r);
+    this.controls.target.copy(this.center);
+    this.controls.update();
+    const trocars: THREE.Vector3[] = [];
+    for (const d of desc.instruments) {
+      const at = new THREE.Vector3(d.trocar?.x ?? 0, d.trocar?.y ?? 0, d.trocar?.z ?? 0);
+      trocars.push(at);
+      const shaft = new THREE.Mesh(
+        new THREE.CylinderGeometry(d.radiusM, d.radiusM, 1, 16),
+        new THREE.MeshStandardMaterial({ color: 0xc9d1d9, metalness: 0.7, roughness: 0.3 }),
+      );
+      shaft.visible = false;
+      const trocar = new THREE.Mesh(
+        new THREE.TorusGeometry(d.radiusM * 2.2, d.radiusM * 0.6, 8, 24),
+        new THREE.MeshStandardMaterial({ color: 0x4a90d9 }),
+      );
+      trocar.position.copy(at);
+      trocar.lookAt(this.center);
+      const arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 1, 0), at, 0.01, 0x33ff66, 0.008, 0.005);
+      arrow.visible = false;
+      this.scene.add(shaft, trocar, arrow);
+      this.instruments.set(d.name, { shaft, trocar, arrow, trocarAt: at });
+    }
+    // The laparoscope's port: between the trocars, a little above, looking at the liver.
+    const port = trocars.length
+      ? trocars.reduce((a, b) => a.clone().add(b)).multiplyScalar(1 / trocars.length).add(new THREE.Vector3(0, 0.03, 0))
+      : this.center.clone().add(new THREE.Vector3(0, 0.05, 3 * r));
+    this.scope.position.copy(port);
+    this.scope.lookAt(this.center);
+    this.dirty = true;
+  }
+
+  /** The deformed surface: positions in the rest surface's vertex order. */
+  setSurface(positions: ArrayLike<number>): void {
+    if (!this.liver || positions.length !== this.rest.length) return;
+    const geometry = this.liver.geometry;
+    const pos = geometry.getAttribute("position") as THREE.BufferAttribute;
+    const col = geometry.getAttribute("color") as THREE.BufferAttribute;
+    const p = pos.array as Float32Array;
+    const c = col.array as Float32Array;
+    let max = 0;
+    let change = 0;
+    const first = (this.first ??= Float32Array.from(positions));
+    for (let i = 0; i < p.length; i += 3) {
+      const x = positions[i], y = positions[i + 1], z = positions[i + 2];
+      p[i] = x;
+      p[i + 1] = y;
+      p[i + 2] = z;
+      const dx = x - this.rest[i], dy = y - this.rest[i + 1], dz = z - this.rest[i + 2];
+      const d = Math.sqrt(dx * dx + dy * dy + dz * dz);
+      if (d > max) max = d;
+      const cx = x - first[i], cy = y - first[i + 1], cz = z - first[i + 2];
+      change = Math.max(change, cx * cx + cy * cy + cz * cz);
+      const t = Math.min(1, d / DISPLACEMENT_FULL_M);
+      c[i] = LIVER.r + (DISPLACED.r - LIVER.r) * t;
+      c[i + 1] = LIVER.g + (DISPLACED.g - LIVER.g) * t;
+      c[i + 2] = LIVER.b + (DISPLACED.b - LIVER.b) * t;
+    }
+    this.maxDisplacement = max;
+    this.maxChange = Math.sqrt(change);
+    pos.needsUpdate = true;
+    col.needsUpdate = true;
+    geometry.computeVertexNormals();
+    this.dirty = true;
+  }
+
+  /** An instrument's shaft (tip to trocar) and force arrow. */
+  setInstrument(s: InstrumentState): void {
+    const v = this.instruments.get(s.instrument);
+    if (!v) return;
+    const tip = s.pose?.tip;
+    if (!tip) {
+      v.shaft.visible = false;
+      v.arrow.visible = false;
+      this.dirty = true;
+      return;
+    }
+    const a = new THREE.Vector3(tip.x, tip.y, tip.z);
+    // From the tip to the trocar, as the instrument passes through it.
+    const end = v.trocarAt;
+    const mid = a.clone().add(end).multiplyScalar(0.5);
+    const dir = end.clone().sub(a);
+    const len = dir.length();
+    v.shaft.position.copy(mid);
+    v.shaft.scale.set(1, Math.max(len, 1e-4), 1);
+    v.shaft.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), dir.normalize());
+    v.shaft.visible = true;
+    const f = s.force?.force;
+    const magnitude = s.force?.magnitudeN ?? 0;
+    if (f && magnitude > 1e-6) {
+      v.arrow.position.copy(a);
+      v.arrow.setDirection(new THREE.Vector3(f.x, f.y, f.z).normalize());
+      const l = Math.max(0.004, magnitude * ARROW_M_PER_N);
+      v.arrow.setLength(l, Math.min(0.008, 0.4 * l), Math.min(0.005, 0.25 * l));
+      v.arrow.visible = true;
+    } else {
+      v.arrow.visible = false;
+    }
+    this.dirty = true;
+  }
+
+  /** Draws if anything changed; true when it drew. */
+  draw(): boolean {
+    if (!this.dirty) return false;
+    this.dirty = false;
+    this.renderer.render(this.scene, this.useScope ? this.scope : this.orbit);
+    this.drawn++;
+    return true;
+  }
+
+  redraw(): void {
+    this.dirty = true;
+  }
+
+  dispose(): void {
+    this.controls.dispose();
+    this.renderer.dispose();
+    this.renderer.domElement.remove();
+  }
+}

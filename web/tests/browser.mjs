@@ -1,0 +1,43 @@
+// Launching Debian's chromium for the console's browser tests and measurements:
+// headless, no sandbox (containers), no GPU (SwiftShader draws WebGL), and none
+// of the background networking that hangs on a closed network.
+import { mkdtempSync, rmSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
+import { chromium } from "playwright-core";
+
+export const CHROMIUM = process.env.LAPARO_CHROMIUM || "/usr/bin/chromium";
+
+export async function launch() {
+  const profile = mkdtempSync(join(tmpdir(), "laparo-chromium-"));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM,
+    headless: true,
+    viewport: { width: 1000, height: 700 },
+    args: [
+      "--headless",
+      "--no-sandbox",
+      "--disable-gpu",
+      "--disable-quic",
+      "--no-first-run",
+      "--disable-background-networking",
+      "--disable-component-update",
+      "--disable-sync",
+      "--enable-unsafe-swiftshader",
+      "--use-angle=swiftshader",
+    ],
+  });
+  const close = async () => {
+    await context.close();
+    rmSync(profile, { recursive: true, force: true });
+  };
+  return { context, close };
+}
+
+/** Fails the run on any uncaught exception or console error of a page. */
+export function watch(page, name, problems) {
+  page.on("pageerror", (e) => problems.push(`${name}: uncaught ${e.message}`));
+  page.on("console", (m) => {
+    if (m.type() === "error") problems.push(`${name}: console error ${m.text()}`);
+  });
+}
