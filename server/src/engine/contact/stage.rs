@@ -17,7 +17,15 @@
 //! instrument and is released when the tissue pulls it away: when its elastic reaction
 //! `−(K u)_i` has a positive component along the direction from the axis to the
 //! vertex. That is a unilateral contact: the instrument pushes, it never pulls, and
-//! when it withdraws the tissue relaxes.
+//! when it withdraws the tissue relaxes. The instrument's normal at a held vertex is
+//! the tip's end for a vertex beyond the tip or laid on the tip plane beside the shaft,
+//! else the radial direction (see `contact_normal`). A held vertex moves at the
+//! instrument's velocity; the stage's jumps are corrections of position, not motion.
+//!
+//! Friction. A held vertex dragged harder than `μ N` slides along the instrument; the
+//! slide is made at the next tick, both in its imposed target and in where the contact
+//! steps start it, so that it stays slid and a held instrument brings the tissue to
+//! equilibrium.
 //!
 //! Why no marching from triangle to triangle (§2.3): the broad phase already returns
 //! every triangle whose motion in the instrument's frame comes within `r` of the axis
@@ -54,6 +62,10 @@ pub struct ContactStage {
     holders: Vec<u8>,
     /// How far each held vertex slips at the next tick (Coulomb friction), m.
     slide: Vec<Vector3<f64>>,
+    /// The slide being applied this tick, taken from `slide` when held vertices are
+    /// carried: part of where a held vertex starts the contact steps, so that a slip
+    /// stays slipped instead of being put back at the tick's start.
+    slid: Vec<Vector3<f64>>,
     s: Scratch,
 }
 
@@ -106,6 +118,7 @@ impl ContactStage {
             current: rest.to_vec(),
             holders: vec![0; n],
             slide: vec![Vector3::zeros(); n],
+            slid: vec![Vector3::zeros(); n],
             s: Scratch::new(surface, rest, fixed),
         }
     }
@@ -134,8 +147,8 @@ impl ContactStage {
                     let r = rigid_motion(&prev, &cur);
                     for &v in &ins.held {
                         let vi = v as usize;
-                        let slid = state.x[vi] + std::mem::take(&mut self.slide[vi]);
-                        imposed.set(v, r.transform_point(&slid));
+                        self.slid[vi] = std::mem::take(&mut self.slide[vi]);
+                        imposed.set(v, r.transform_point(&(state.x[vi] + self.slid[vi])));
                     }
                 }
                 _ => {
@@ -173,8 +186,10 @@ impl ContactStage {
             self.s.mark = self.s.mark.wrapping_add(1);
             self.s.moved.clear();
             for &v in &surface.vertices {
-                self.end[v as usize] = state.x[v as usize];
-                self.current[v as usize] = self.start[v as usize];
+                let vi = v as usize;
+                self.end[vi] = state.x[vi];
+                // A held vertex starts where its slide took it (zero for the others).
+                self.current[vi] = self.start[vi] + self.slid[vi];
             }
             let bit = 1u8 << k;
             let moves = sub_moves(&prev, &pose);
@@ -262,14 +277,26 @@ impl ContactStage {
                 }
             }
         }
+        for &v in &surface.vertices {
+            self.slid[v as usize] = Vector3::zeros();
+        }
         for ins in instruments.iter_mut() {
             self.report_reaction(ins, model, state);
-            ins.previous = ins.current;
-            // What the stage holds keeps the velocity of its motion over the tick.
-            for &v in &ins.held {
-                let v = v as usize;
-                state.v[v] = (state.x[v] - self.start[v]) / dt;
+            // What the stage holds moves with the instrument: its velocity is the
+            // instrument's at that point over the tick, `(R(x₀) − x₀)/dt`. The jumps of
+            // the contact steps (a vertex put back on the instrument's surface, a tip
+            // triangle laid on its plane) are corrections of position, not motion:
+            // counted as velocity they were tens of metres a second at 1 kHz on a
+            // coarse mesh, which a vertex kept when released and threw the tissue
+            // through the instrument.
+            if let (Some(prev), Some(cur)) = (ins.previous, ins.current) {
+                let r = rigid_motion(&prev, &cur);
+                for &v in &ins.held {
+                    let x0 = self.start[v as usize];
+                    state.v[v as usize] = (r.transform_point(&x0) - x0) / dt;
+                }
             }
+            ins.previous = ins.current;
         }
     }
 
@@ -371,7 +398,14 @@ impl ContactStage {
             if s.moved_mark[vi] == s.mark {
                 return true;
             }
-            let hold = stays_held(&state.x[vi], &state.reaction[vi], &pose, length, ins_params);
+            let hold = stays_held(
+                &state.x[vi],
+                &state.reaction[vi],
+                &pose,
+                length,
+                radius,
+                ins_params,
+            );
             let keep = match hold {
                 Hold::Stick => true,
                 Hold::Slip(tangent, excess) => {
@@ -388,7 +422,9 @@ impl ContactStage {
                     let stiffness = tangent.dot(&(kii * tangent.into_inner()));
                     let step = excess / stiffness;
                     if stiffness > 0.0 && step <= MAX_SLIDE * radius {
-                        slide[vi] = tangent.into_inner() * step;
+                        if step >= MIN_SLIDE * radius {
+                            slide[vi] = tangent.into_inner() * step;
+                        }
                         true
                     } else {
                         false
@@ -472,6 +508,16 @@ const ADHESION: f64 = 0.1;
 /// The longest slide of a held vertex in one tick, as a fraction of the radius.
 const MAX_SLIDE: f64 = 0.5;
 
+/// The shortest slide made, as a fraction of the radius (5 µm on a 5 mm shaft). The
+/// slide is a step of the excess drag over the vertex's own stiffness `K_ii`, stiffer
+/// than the tissue around it, so successive slides close in on the friction cone
+/// geometrically and never quite reach it; each moves the held vertex off the chords
+/// the push-out left its edges on, and the push-out puts them back. Below this the
+/// slides only stirred those margins (10 µm of push-out every other tick, a residual
+/// of a millinewton that never died out); the drag they leave is `K_ii` times 5 µm,
+/// a few hundredths of a percent of the force.
+const MIN_SLIDE: f64 = 1e-3;
+
 /// What becomes of a held vertex this tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Hold {
@@ -504,17 +550,11 @@ fn stays_held(
     reaction: &Vector3<f64>,
     pose: &InstrumentPose,
     length: f64,
+    radius: f64,
     (tip_contact, friction, adhesion): (bool, f64, f64),
 ) -> Hold {
-    let c = super::closest::closest_point_axis(x, pose, length);
-    let at_tip = c.beta <= 0.0 && (x - pose.tip).dot(&pose.axis) <= 0.0;
-    let m = if at_tip && tip_contact {
-        -pose.axis.into_inner()
-    } else {
-        match c.offset.try_normalize(0.0) {
-            Some(m) => m,
-            None => return Hold::Release,
-        }
+    let Some(m) = contact_normal(x, pose, length, radius, tip_contact) else {
+        return Hold::Release;
     };
     let normal = -reaction.dot(&m);
     if normal < -adhesion || (normal <= 0.0 && adhesion == 0.0) {
@@ -528,6 +568,40 @@ fn stays_held(
         _ => Hold::Stick,
     }
 }
+
+/// The instrument's outward surface normal `m` at a held vertex `x`: `−Z` on the
+/// tip's flat end, else the radial direction from the axis; `None` on the axis.
+///
+/// The tip's end is where the vertex lies at or beyond the tip (`β ≤ 0`), and, with
+/// a pressing tip, also where it lies off the shaft's surface (beyond
+/// [`OFF_SHAFT`]·r from the axis) level with the tip (`(x − P)·Z ≤ r`, the split of
+/// the local model): the tip press lays the whole triangle under the tip on its
+/// plane, so on a coarse mesh it holds vertices a centimetre or two beside the
+/// shaft. Those touch no part of the shaft; taking the radial direction for them
+/// made a withdrawal along the axis look like a slide along the shaft, and they
+/// crept toward the tip a few hundred microns a tick, held for half a second.
+fn contact_normal(
+    x: &Point3<f64>,
+    pose: &InstrumentPose,
+    length: f64,
+    radius: f64,
+    tip_contact: bool,
+) -> Option<Vector3<f64>> {
+    let c = super::closest::closest_point_axis(x, pose, length);
+    let level = (x - pose.tip).dot(&pose.axis);
+    let at_tip =
+        (c.beta <= 0.0 && level <= 0.0) || (c.distance() > OFF_SHAFT * radius && level <= radius);
+    if at_tip && tip_contact {
+        Some(-pose.axis.into_inner())
+    } else {
+        c.offset.try_normalize(0.0)
+    }
+}
+
+/// Distance from the axis, in radii, beyond which a held vertex is off the shaft's
+/// surface: the push-out leaves vertices at `r (1 + 10⁻⁴)` and an edge pushed out
+/// leaves its ends a little further; 1.05 r is well clear of both.
+const OFF_SHAFT: f64 = 1.05;
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
 /// on a straight line in the instrument's frame while the instrument turns about its

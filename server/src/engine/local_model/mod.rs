@@ -226,9 +226,9 @@ impl LocalModelStage {
                 let (lambda, depth, n) = match self.kind {
                     ForceModel::Geometric => (k_geo, tip.indentation, n),
                     ForceModel::Calibrated => {
-                        let n = stiffness::fitted_normal(&tip.reaction, n, None);
-                        let (lambda, depth) = calibration.tip.fit(tip.sample(&n), k_geo);
-                        (lambda, depth, n)
+                        let fitted = stiffness::fitted_normal(&tip.reaction, n, None);
+                        let (lambda, depth) = calibration.tip.fit(tip.sample(&fitted, &n), k_geo);
+                        (lambda, depth, fitted)
                     }
                 };
                 model.young_modulus = Some(material.0);
@@ -258,9 +258,10 @@ impl LocalModelStage {
                 let (lambda, depth, n) = match self.kind {
                     ForceModel::Geometric => (k_geo, shaft.indentation, n),
                     ForceModel::Calibrated => {
-                        let n = stiffness::fitted_normal(&shaft.reaction, n, Some(&z));
-                        let (lambda, depth) = calibration.shaft.fit(shaft.sample(&n), k_geo);
-                        (lambda, depth, n)
+                        let fitted = stiffness::fitted_normal(&shaft.reaction, n, Some(&z));
+                        let (lambda, depth) =
+                            calibration.shaft.fit(shaft.sample(&fitted, &n), k_geo);
+                        (lambda, depth, fitted)
                     }
                 };
                 let level = level.clamp(0.0, ins.length);
@@ -349,10 +350,12 @@ impl Held {
         (self.young / n, self.poisson / n)
     }
 
-    /// The calibration sample along the fitted normal `n`.
-    fn sample(&self, n: &Unit<Vector3<f64>>) -> stiffness::Sample {
+    /// The calibration sample: indentation and push along the geometric normal
+    /// `geometric`, the reaction along the fitted normal `n`.
+    fn sample(&self, n: &Unit<Vector3<f64>>, geometric: &Unit<Vector3<f64>>) -> stiffness::Sample {
         stiffness::Sample {
             indentation: self.indentation,
+            normal_reaction: self.reaction.dot(geometric),
             reaction: self.reaction.dot(n),
         }
     }

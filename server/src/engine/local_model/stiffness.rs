@@ -98,11 +98,18 @@ pub fn fitted_normal(
 }
 
 /// What one plane's contact gives for calibration.
+///
+/// Two normals are at play: the geometric one `n` (the surface's, along which the
+/// indentation is measured) and the fitted one `n_f` (along the reaction, drag
+/// included, see [`fitted_normal`]). The stiffness relates push to indentation along
+/// the same normal, `λ = (R·n)/δ`; the depth renders the whole reaction, `R·n_f`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {
-    /// Indentation `δ` of the held vertices along the plane's normal, m.
+    /// Indentation `δ` of the held vertices along the geometric normal `n`, m.
     pub indentation: f64,
-    /// The elastic model's reaction on them along the normal, N.
+    /// The elastic model's reaction on them along the geometric normal, `R·n`, N.
+    pub normal_reaction: f64,
+    /// The reaction along the fitted normal, `R·n_f`, N.
     pub reaction: f64,
 }
 
@@ -134,15 +141,23 @@ impl Fit {
     /// `(λ, depth)` such that `λ · depth` is the reaction `R = max(0, sample.reaction)`
     /// exactly: the model reproduces the elastic force at the tick's pose.
     ///
-    /// `λ` is the secant stiffness `R / δ` of the elastic model at this contact (the
-    /// tangent too, the model being linear), within [`RANGE`] of `geometric`; while
-    /// `δ < MIN_INDENTATION` the last fitted `λ` (or `geometric`) is kept. The depth
-    /// `R / λ` then sets the anchor: it equals `δ` when `λ = R / δ`.
+    /// `λ` is the secant stiffness `(R·n) / δ` of the elastic model at this contact
+    /// (the tangent too, the model being linear): push and indentation along the same
+    /// normal, within [`RANGE`] of `geometric`; while `δ < MIN_INDENTATION` the last
+    /// fitted `λ` (or `geometric`) is kept. The depth `R / λ` then sets the anchor: it
+    /// equals `δ` when the reaction is all push.
+    ///
+    /// Why not `|R| / δ`: the drag of tissue stuck to the instrument is no stiffness
+    /// against pressing. A single vertex under the tip, dragged sideways by a hand
+    /// that slid 2 mm on 1 MPa tissue, carried 70 N of drag for 0.2 mm of indentation;
+    /// counted as stiffness it made a wall of 100–200 kN/m (`RANGE` times the
+    /// geometric one) that a 0.15 kg hand at 1 kHz bounced on, kicked to the device's
+    /// limit at every return by the approach plane that keeps the last `λ`.
     pub fn fit(&mut self, sample: Sample, geometric: f64) -> (f64, f64) {
         let reaction = sample.reaction.max(0.0);
-        if sample.indentation >= MIN_INDENTATION && reaction > 0.0 {
-            let lambda =
-                (reaction / sample.indentation).clamp(geometric / RANGE, geometric * RANGE);
+        let push = sample.normal_reaction;
+        if sample.indentation >= MIN_INDENTATION && push > 0.0 {
+            let lambda = (push / sample.indentation).clamp(geometric / RANGE, geometric * RANGE);
             self.lambda = Some(lambda);
         }
         let lambda = self.lambda.unwrap_or(geometric);

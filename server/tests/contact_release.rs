@@ -1,0 +1,147 @@
+//! Release: an instrument that pulls away lets the tissue go, at every mechanics rate
+//! and stiffness of the stability grid, and a shaft that sweeps across the liver
+//! leaves it to relax back to its rest shape.
+
+mod common;
+
+use common::contact::*;
+use common::{default_variant, max_distance};
+use laparo_server::engine::scene::Scene;
+use laparo_server::engine::simulation::Simulation;
+
+/// Ticks in `seconds` at the simulation's rate, at least one.
+fn ticks(sim: &Simulation, seconds: f64) -> usize {
+    ((seconds / sim.dt).round() as usize).max(1)
+}
+
+/// Presses the left tip 8 mm into the free front, holds, withdraws 2 cm above where
+/// it started, and stays in the body. Returns how long after the end of the
+/// withdrawal, s, the tip last held a vertex (0 if nothing was held by then), and
+/// the largest number of vertices held while pressing.
+fn press_and_withdraw(sim: &mut Simulation) -> (f64, usize) {
+    let front = front_point(sim);
+    let top = front.z + 0.01;
+    let bottom = front.z - 0.008;
+    let path = |z: f64| Some(pose([front.x, front.y, z], [0.0, 0.0, 1.0]));
+    let (press, hold, out) = (ticks(sim, 0.5), ticks(sim, 0.25), ticks(sim, 0.25));
+    let mut pressed = 0;
+    for k in 1..=press + hold {
+        let s = k.min(press) as f64 / press as f64;
+        sim.set_pose(0, path(top + (bottom - top) * s));
+        sim.tick();
+        check_invariants(sim).unwrap();
+        pressed = pressed.max(sim.instruments[0].held.len());
+    }
+    for k in 1..=out {
+        let s = k as f64 / out as f64;
+        sim.set_pose(0, path(bottom + (top + 0.01 - bottom) * s));
+        sim.tick();
+        check_invariants(sim).unwrap();
+    }
+    let mut last_held = 0.0;
+    for k in 1..=ticks(sim, 0.5) {
+        sim.set_pose(0, path(top + 0.01));
+        sim.tick();
+        check_invariants(sim).unwrap();
+        if !sim.instruments[0].held.is_empty() {
+            last_held = k as f64 * sim.dt;
+        }
+    }
+    (last_held, pressed)
+}
+
+fn release_grid(integrator: &str, e: f64) {
+    let mut failures = Vec::new();
+    for nu in [0.3, 0.49] {
+        for rate in [1.0, 30.0, 1000.0] {
+            let mut sim = default_variant("builtin:liver.msh", e, nu, 1.0 / rate, integrator);
+            // From the liver's sag: at 1 kPa it hangs centimetres below its rest.
+            sim.solve_static();
+            let (last_held, pressed) = press_and_withdraw(&mut sim);
+            let case = format!("{integrator} E={e:e} ν={nu} {rate} Hz");
+            println!("{case}: {pressed} held pressing, last held {last_held} s after");
+            if pressed == 0 {
+                failures.push(format!("{case}: the tip held nothing"));
+            }
+            // Within 0.1 s, or the first tick after the withdrawal at a rate too
+            // slow to have a tick in 0.1 s.
+            if last_held > 0.1f64.max(sim.dt) {
+                failures.push(format!("{case}: still held {last_held} s after"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn release_implicit_1kpa() {
+    release_grid("implicit", 1e3);
+}
+#[test]
+fn release_implicit_100kpa() {
+    release_grid("implicit", 1e5);
+}
+#[test]
+fn release_implicit_10mpa() {
+    release_grid("implicit", 1e7);
+}
+#[test]
+fn release_explicit_1kpa() {
+    release_grid("explicit", 1e3);
+}
+#[test]
+fn release_explicit_100kpa() {
+    release_grid("explicit", 1e5);
+}
+#[test]
+fn release_explicit_10mpa() {
+    release_grid("explicit", 1e7);
+}
+
+#[test]
+fn a_sweeping_shaft_leaves_the_liver_to_relax() {
+    for speed in [5.0, 40.0] {
+        let mut sim = Scene::default_scene().build().unwrap();
+        for _ in 0..120 {
+            sim.tick();
+        }
+        let sag = sim.state.x.clone();
+        let front = front_point(&sim);
+        let (lo, _) = sim.mesh.bounding_box();
+        // The shaft along x, its tip beyond the liver's end, pressed 1 cm into the
+        // free front in 20 ticks, dragged 4 cm up the face at `speed`, then taken
+        // 3 cm out of the face and left there.
+        let at = |y: f64, z: f64| Some(pose([lo.x - 0.03, y, z], [1.0, 0.0, 0.0]));
+        let (y0, y1, z0) = (-0.02, 0.02, front.z + 0.005);
+        for k in 1..=20 {
+            sim.set_pose(0, at(y0, z0 - 0.015 * k as f64 / 20.0));
+            sim.tick();
+            check_invariants(&sim).unwrap();
+        }
+        let n = (((y1 - y0) / speed) / sim.dt).ceil().max(1.0) as usize;
+        for k in 1..=n {
+            sim.set_pose(0, at(y0 + (y1 - y0) * k as f64 / n as f64, z0 - 0.015));
+            sim.tick();
+            check_invariants(&sim).unwrap();
+        }
+        let dragged = sim.instruments[0].held.len();
+        sim.set_pose(0, at(y1, z0 + 0.03));
+        sim.tick();
+        check_invariants(&sim).unwrap();
+        let held_after = sim.instruments[0].held.len();
+        for _ in 0..180 {
+            sim.tick();
+        }
+        let off = max_distance(&sim.state.x, &sag);
+        println!("{speed} m/s: {dragged} held dragging, {held_after} after, {off:.2e} m off rest");
+        assert!(
+            sim.instruments[0].held.is_empty(),
+            "{speed} m/s: still holds {:?}",
+            sim.instruments[0].held
+        );
+        assert!(
+            off <= 1e-3,
+            "{speed} m/s: the liver is {off} m off its rest"
+        );
+    }
+}
