@@ -183,6 +183,23 @@ pub(super) fn strain_energy(elements: &[Element], x: &[Point3<f64>]) -> f64 {
         .sum()
 }
 
+/// `out = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic force at `x` (N), with
+/// every rotation extracted afresh (not warm-started): what an equilibrium check
+/// needs, independent of the rotations a solver carried.
+pub(super) fn negated_force(elements: &[Element], x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
+    out.iter_mut().for_each(|o| *o = Vector3::zeros());
+    for e in elements {
+        let f = e.deformation_gradient(x);
+        let mut q = UnitQuaternion::identity();
+        extract_rotation(&f, &mut q, COLD_ITERATIONS);
+        let r = *q.to_rotation_matrix().matrix();
+        let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+        for (&v, g) in e.tet.iter().zip(&e.gradients()) {
+            out[v as usize] += rs * g;
+        }
+    }
+}
+
 /// The per-tick state of the corotational model: each element's rotation (the warm
 /// start of the next extraction), the rotated stiffness `K̂` and the offset `o`.
 /// Allocated once; [`update`](Self::update) and [`force`](Self::force) allocate

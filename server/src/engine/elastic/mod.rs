@@ -342,6 +342,20 @@ impl ElasticModel {
         }
     }
 
+    /// The negated elastic force at `x`, N: `K (x − X)` (linear) or
+    /// `Σ_e R_e K_e (R_eᵀ x_e − X_e)` with every rotation extracted afresh
+    /// (corotational). `x` is an equilibrium under loads `f` when `f − out` vanishes
+    /// on the free vertices. For checks and output, not for the tick.
+    pub fn negated_elastic_force_at(&self, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
+        match self.formulation {
+            Formulation::Linear => {
+                let u: Vec<_> = x.iter().zip(&self.rest).map(|(x, r)| x - r).collect();
+                self.stiffness.mul(&u, out);
+            }
+            Formulation::Corotational => corotational::negated_force(&self.elements, x, out),
+        }
+    }
+
     /// Elastic potential energy `½ uᵀ K u` of the displacement `u`, J (the linear
     /// model's).
     pub fn strain_energy(&self, u: &[Vector3<f64>]) -> f64 {
