@@ -7,18 +7,32 @@
 //! explicit and implicit (CG tolerance 1e-4, the default), from rest: the ticks measured are the
 //! gravity transient, the busiest part of the run for CG. Then, where the budget
 //! allows (meshes up to liver-20k), the run continues to 2 s simulated and 30 ticks are
-//! timed at rest. One core. Reports median tick times, ticks per second, substeps or
-//! CG iterations per tick (median), the memory the model and integrator hold, and the
-//! median of each stage of the transient ticks as `TickTiming` names them
-//! (`carry_held_vertices`, `elastic_step`, `resolve_contact`, `local_models`; the
-//! instruments stay out of the body, so the contact stages do almost nothing).
+//! timed at rest. One core. The elastic model is the default scene's (corotational).
+//! Reports per mesh: median tick times, ticks per second, substeps or CG iterations
+//! per tick (median), the achieved bytes per second, the memory the model and
+//! integrator hold, and the median of each stage of the transient ticks as
+//! `TickTiming` names them (`carry_held_vertices`, `elastic_step`, `resolve_contact`,
+//! `local_models`; the instruments stay out of the body, so the contact stages do
+//! almost nothing).
+//!
+//! Achieved bytes per second: the bytes one tick streams, each array counted once per
+//! pass that reads or writes it, over the median tick. A product `K p` reads the
+//! stiffness blocks and indices, the masses and `p` and writes its result; a CG
+//! iteration adds ten block vectors for its updates and dot products and the inverse
+//! diagonal blocks of block Jacobi; a corotational tick first reads every element and
+//! the positions and writes `K̂` twice (zeroed, then summed into) and the offset; an
+//! explicit substep is a force evaluation (the product, or the element pass when
+//! corotational) and four vector passes for positions and velocities. Cache reuse is
+//! not credited: it is what the solver moves, not what memory delivered.
 
 mod common;
 
 use std::time::Instant;
 
 use common::*;
+use laparo_server::engine::elastic::{Element, Formulation};
 use laparo_server::engine::integrate::IntegratorKind;
+use laparo_server::engine::simulation::Simulation;
 
 fn main() {
     let labels = [
@@ -29,9 +43,9 @@ fn main() {
         "liver-300k",
     ];
     println!(
-        "| mesh | vertices | tets | integrator | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | median tick at rest (ms) | ticks/s at rest | memory (MB) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
+        "| mesh | vertices | tets | model | integrator | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | achieved GB/s | median tick at rest (ms) | ticks/s at rest | memory (MB) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in meshes(&labels) {
         for integrator in [IntegratorKind::Explicit, IntegratorKind::Implicit] {
             let scene = scene(&case.file, integrator, 1e-4);
@@ -40,13 +54,16 @@ fn main() {
                 + sim.integrator.heap_bytes()
                 + 3 * 24 * sim.mesh.vertex_count();
             // Time up to 60 ticks (1 s simulated) or about 8 s of wall time.
-            let (mut times, mut substeps, mut cg) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut times, mut substeps, mut cg, mut bytes) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
             let mut stages: [Vec<f64>; 4] = Default::default();
             let budget = Instant::now();
             while times.len() < 60 && (times.len() < 3 || since(budget) < 8.0) {
                 let t = Instant::now();
                 let r = sim.tick();
-                times.push(since(t));
+                let elapsed = since(t);
+                times.push(elapsed);
+                bytes.push(tick_bytes(&sim, r.substeps, r.cg_iterations) / elapsed);
                 substeps.push(r.substeps as f64);
                 cg.push(r.cg_iterations as f64);
                 let t = sim.last_timing;
@@ -80,19 +97,47 @@ fn main() {
             };
             let [carry, elastic, resolve, local] = stages.map(|mut v| median(&mut v) * 1e3);
             println!(
-                "| {} | {} | {} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {} | {:.1} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
+                "| {} | {} | {} | {:?} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {:.2} | {} | {:.1} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
                 case.label,
                 sim.mesh.vertex_count(),
                 sim.mesh.tets.len(),
+                sim.model.formulation,
                 integrator,
                 tick * 1e3,
                 1.0 / tick,
                 median(&mut substeps),
                 median(&mut cg),
+                median(&mut bytes) / 1e9,
                 at_rest,
                 memory as f64 / 1e6,
                 n
             );
         }
     }
+}
+
+/// Bytes one tick streams, each array counted once per pass (see the module comment).
+fn tick_bytes(sim: &Simulation, substeps: u32, cg_iterations: u32) -> f64 {
+    let n = sim.mesh.vertex_count() as f64;
+    let vector = 24.0 * n;
+    let k = sim.model.stiffness.heap_bytes() as f64;
+    let product = k + 8.0 * n + 2.0 * vector;
+    let corotational = sim.model.formulation == Formulation::Corotational;
+    // Elements and positions read; K̂ zeroed and summed into; offset and force written.
+    let elements = (sim.model.elements.len() * std::mem::size_of::<Element>()) as f64;
+    let update = elements + vector + 2.0 * k + 2.0 * vector;
+    if sim.integrator.config().kind == IntegratorKind::Explicit {
+        let force = if corotational {
+            elements + 2.0 * vector
+        } else {
+            product
+        };
+        return f64::from(substeps) * (force + 4.0 * vector);
+    }
+    let precond = 72.0 * n + 2.0 * vector;
+    // The update (corotational) or a product for the right-hand side, the first
+    // residual, then per iteration a product, the updates and the preconditioner.
+    let start = if corotational { update } else { product };
+    let its = f64::from(cg_iterations);
+    start + product + precond + its * (product + 10.0 * vector + precond)
 }
