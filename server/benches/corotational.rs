@@ -129,7 +129,10 @@ fn error_against_static(sim: &Simulation) -> f64 {
     let mut reference = sim.state.clone();
     let report = static_solver.solve_static(&sim.model, &mut reference, &sim.imposed, sim.gravity);
     if !report.converged {
-        eprintln!("{}: static reference not converged: {report:?}", sim.scene.name);
+        eprintln!(
+            "{}: static reference not converged: {report:?}",
+            sim.scene.name
+        );
     }
     let scale = reference
         .x
