@@ -43,3 +43,15 @@ export function watch(page, name, problems) {
     if (m.type() === "error") problems.push(`${name}: console error ${m.text()}`);
   });
 }
+
+// Creates a session of `scene` from the sessions page `lobby` (at `url`) as an
+// instructor, goes back to the list, and returns the session's id.
+export async function createSession(lobby, url, scene) {
+  await lobby.waitForSelector(`#new-scene option[value="${scene}"]`, { state: "attached", timeout: 30_000 });
+  await lobby.selectOption("#new-scene", scene);
+  await lobby.click("#create");
+  await lobby.waitForSelector("#live[data-session]");
+  const session = await lobby.$eval("#live", (e) => e.dataset.session);
+  await lobby.goto(`${url}#/`);
+  return session;
+}

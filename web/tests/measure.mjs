@@ -9,7 +9,7 @@
 // drawn frame. Prints a markdown table.
 // Usage: node measure.mjs URL [TOKEN] [SECONDS] [SCENE...]
 //   (default: 30 s, the scenes `default` and `liver-20k` where the server has them)
-import { launch } from "./browser.mjs";
+import { createSession, launch } from "./browser.mjs";
 
 const [url, token = "", seconds = "30", ...wanted] = process.argv.slice(2);
 const scenes = wanted.length ? wanted : ["default", "liver-20k"];
@@ -57,12 +57,7 @@ try {
       continue;
     }
     await lobby.goto(`${url}#/`);
-    await lobby.waitForSelector(`#new-scene option[value="${scene}"]`, { state: "attached" });
-    await lobby.selectOption("#new-scene", scene);
-    await lobby.click("#create");
-    await lobby.waitForSelector("#live[data-session]");
-    const session = await lobby.$eval("#live", (e) => e.dataset.session);
-    await lobby.goto(`${url}#/`);
+    const session = await createSession(lobby, url, scene);
 
     const page = await context.newPage();
     const cdp = await context.newCDPSession(page);

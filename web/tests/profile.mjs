@@ -3,7 +3,7 @@
 // thread ran (top-level tasks, and the work inside them: script, style, layout,
 // paint, garbage collection, the frame loop), per animation frame.
 // Usage: node profile.mjs URL [TOKEN] [SECONDS] [SCENE]
-import { launch } from "./browser.mjs";
+import { createSession, launch } from "./browser.mjs";
 
 const [url, token = "", seconds = "5", scene = "default"] = process.argv.slice(2);
 const { context, close } = await launch();
@@ -11,12 +11,7 @@ await context.addInitScript((t) => t && sessionStorage.setItem("laparo.token", t
 try {
   const lobby = await context.newPage();
   await lobby.goto(url);
-  await lobby.waitForSelector(`#new-scene option[value="${scene}"]`, { state: "attached", timeout: 30_000 });
-  await lobby.selectOption("#new-scene", scene);
-  await lobby.click("#create");
-  await lobby.waitForSelector("#live[data-session]");
-  const session = await lobby.$eval("#live", (e) => e.dataset.session);
-  await lobby.goto(`${url}#/`);
+  const session = await createSession(lobby, url, scene);
 
   const page = await context.newPage();
   await page.goto(`${url}#/live/${encodeURIComponent(session)}`);
