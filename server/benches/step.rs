@@ -7,7 +7,8 @@
 //! explicit and implicit (CG tolerance 1e-4, the default), from rest: the ticks measured are the
 //! gravity transient, the busiest part of the run for CG. Then, where the budget
 //! allows (meshes up to liver-20k), the run continues to 2 s simulated and 30 ticks are
-//! timed at rest. One core. The elastic model is the default scene's (corotational).
+//! timed at rest. One core. The elastic model is the default scene's (`[material] model`;
+//! linear while the default scene is linear).
 //! Reports per mesh: median tick times, ticks per second, substeps or CG iterations
 //! per tick (median), the achieved bytes per second, the memory the model and
 //! integrator hold, and the median of each stage of the transient ticks as
