@@ -334,4 +334,5 @@ fn check_normals(mesh: &TetMesh) -> usize {
 
 mod data_sets;
 mod file_faults;
+mod generated;
 mod geometry_faults;
