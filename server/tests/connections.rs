@@ -63,11 +63,7 @@ async fn connections_without_a_stream_are_closed_after_the_idle_timeout_and_stre
             OsStr::new("1"),
         ],
     );
-    let ch = connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
+    let ch = connect(port).await;
     let session = v1::sessions_client::SessionsClient::new(ch.clone())
         .create_session(v1::CreateSessionRequest {
             scene: "default".into(),
@@ -123,11 +119,7 @@ async fn a_connection_past_the_limit_is_closed_at_once_and_served_once_one_close
         ],
     );
     // Two connections: this channel's and `a`.
-    let ch = connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
+    let ch = connect(port).await;
     let wait = Duration::from_secs(20);
     let mut a = TcpStream::connect(("127.0.0.1", port)).unwrap();
     a.write_all(PREFACE).unwrap();
@@ -210,11 +202,7 @@ async fn out_of_file_descriptors_the_accept_loop_waits_and_serves_again_once_the
     });
     let server = Server(child);
     let pid = server.0.id();
-    connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
+    connect(port).await;
 
     // More connections than the process has descriptors: the kernel queues the
     // ones the server cannot accept (the listen backlog is larger).

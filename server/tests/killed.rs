@@ -17,7 +17,7 @@ use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 
 mod common;
-use common::process::{Server, connect, free_port};
+use common::process::{Server, connect, create_recorded_session, free_port};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverable() {
@@ -39,27 +39,14 @@ async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverab
         }
     });
     let mut server = Server(child);
-    let ch = connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
-    let info = v1::sessions_client::SessionsClient::new(ch.clone())
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let file = dir.path().join(info.recording_file.expect("recorded"));
+    let ch = connect(port).await;
+    let (session_id, file) = create_recorded_session(ch.clone(), "default", dir.path()).await;
 
     // A station presses the left instrument into the liver's front face.
     let (tx, out) = mpsc::channel(64);
     tx.send(v1::StationMessage {
         kind: Some(v1::station_message::Kind::Open(v1::JoinRequest {
-            session_id: info.session_id.clone(),
+            session_id: session_id.clone(),
             role: v1::Role::Trainee as i32,
             instruments: vec!["left".into()],
             surface_frame_rate_hz: None,

@@ -10,14 +10,14 @@ use std::ffi::OsStr;
 use std::io::Write;
 use std::net::TcpStream;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use laparo_proto::v1;
 use laparo_server::recording::Recording;
 use laparo_server::service::shutdown::{SHUTDOWN_BOUND, SHUTDOWN_GRACE};
 
 mod common;
-use common::process::{Server, connect, free_port, spawn, terminate};
+use common::process::{Server, connect, create_recorded_session, free_port, spawn, terminate};
 
 /// The client preface every HTTP/2 connection starts with (RFC 9113 §3.4).
 const PREFACE: &[u8] = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n";
@@ -35,22 +35,8 @@ async fn serving(dir: &std::path::Path) -> (Server, u16, String, PathBuf) {
             OsStr::new("3600"),
         ],
     );
-    let ch = connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
-    let info = v1::sessions_client::SessionsClient::new(ch)
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let file = dir.join(info.recording_file.expect("recorded"));
-    (server, port, info.session_id, file)
+    let (session_id, file) = create_recorded_session(connect(port).await, "default", dir).await;
+    (server, port, session_id, file)
 }
 
 /// SIGTERM, then the process's exit within the bound, cleanly, and the recording

@@ -4,11 +4,10 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use laparo_proto::v1;
 use laparo_server::recording::Recording;
 
 mod common;
-use common::process::{Server, connect, free_port};
+use common::process::{Server, connect, create_recorded_session, free_port};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_ends_a_server_whose_session_runs_the_longest_ticks_a_scene_may_ask() {
@@ -44,21 +43,7 @@ async fn sigterm_ends_a_server_whose_session_runs_the_longest_ticks_a_scene_may_
         .spawn()
         .unwrap();
     let mut server = Server(child);
-    let ch = connect(
-        &format!("http://127.0.0.1:{port}"),
-        Instant::now() + Duration::from_secs(30),
-    )
-    .await;
-    let info = v1::sessions_client::SessionsClient::new(ch)
-        .create_session(v1::CreateSessionRequest {
-            scene: "long".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    let file = recordings.join(info.recording_file.expect("recorded"));
+    let (_, file) = create_recorded_session(connect(port).await, "long", &recordings).await;
 
     let term = Command::new("kill")
         .args(["-TERM", &server.0.id().to_string()])

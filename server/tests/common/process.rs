@@ -23,10 +23,16 @@ pub fn free_port() -> u16 {
         .port()
 }
 
-/// A channel to `url` once the server listens; fails the test past `deadline`.
-pub async fn connect(url: &str, deadline: Instant) -> tonic::transport::Channel {
+/// How long a test waits for a server it started to listen.
+const LISTEN_WAIT: Duration = Duration::from_secs(30);
+
+/// A channel to the server on loopback `port` once it listens; fails the test past
+/// [`LISTEN_WAIT`].
+pub async fn connect(port: u16) -> tonic::transport::Channel {
+    let url = format!("http://127.0.0.1:{port}");
+    let deadline = Instant::now() + LISTEN_WAIT;
     loop {
-        match tonic::transport::Endpoint::from_shared(url.to_string())
+        match tonic::transport::Endpoint::from_shared(url.clone())
             .unwrap()
             .connect()
             .await
@@ -36,6 +42,26 @@ pub async fn connect(url: &str, deadline: Instant) -> tonic::transport::Channel 
             Err(_) => tokio::time::sleep(Duration::from_millis(20)).await,
         }
     }
+}
+
+/// Creates a recorded session of `scene` over `ch`: its id and the recording's path
+/// in `recordings` (the server's `--recordings` folder).
+pub async fn create_recorded_session(
+    ch: tonic::transport::Channel,
+    scene: &str,
+    recordings: &std::path::Path,
+) -> (String, std::path::PathBuf) {
+    let info = laparo_proto::v1::sessions_client::SessionsClient::new(ch)
+        .create_session(laparo_proto::v1::CreateSessionRequest {
+            scene: scene.into(),
+            idle_timeout_s: None,
+            record: Some(true),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let file = recordings.join(info.recording_file.expect("recorded"));
+    (info.session_id, file)
 }
 
 /// A real server on `port` with `args`, its log on the test's stderr.
