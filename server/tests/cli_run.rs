@@ -13,6 +13,18 @@ fn server() -> Command {
     Command::new(env!("CARGO_BIN_EXE_laparo-server"))
 }
 
+/// Runs `command`, fails the test with its stderr unless it succeeds, and returns its
+/// output.
+fn succeed(command: &mut Command) -> std::process::Output {
+    let out = command.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("laparo-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -34,15 +46,10 @@ fn data_array(vtu: &str, name: &str) -> Vec<f64> {
 #[test]
 fn exported_state_matches_the_library_run_exactly() {
     let out = temp("default.vtu");
-    let status = server()
-        .args(["run", "--seconds", "0.5", "--export"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
+    let status = succeed(
+        server()
+            .args(["run", "--seconds", "0.5", "--export"])
+            .arg(&out),
     );
     let stdout = String::from_utf8_lossy(&status.stdout);
     assert!(stdout.contains("ran 30 ticks"), "{stdout}");
@@ -75,15 +82,7 @@ fn exported_state_matches_the_library_run_exactly() {
 #[test]
 fn static_solve_of_the_sofa_demo_runs() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/sofa-liver.toml");
-    let out = server()
-        .args(["run", "--static", "--scene", scene])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = succeed(server().args(["run", "--static", "--scene", scene]));
     assert!(String::from_utf8_lossy(&out.stdout).contains("static: "));
 }
 
@@ -140,16 +139,7 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
          1.0, left, 0.0, 0.0, 0.055, 0, 0, 1\n",
     )
     .unwrap();
-    let out = server()
-        .args(["run", "--trajectory"])
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = succeed(server().args(["run", "--trajectory"]).arg(&csv));
     let stdout = String::from_utf8_lossy(&out.stdout);
     // The run lasts as long as the trajectory, and the instrument holds tissue at the end.
     assert!(stdout.contains("ran 60 ticks"), "{stdout}");
@@ -186,15 +176,10 @@ fn a_time_series_lists_rest_points_and_displacements_at_each_period() {
     // frames, each with the rest points (so that Warp By Vector draws X + u) and the
     // last one with exactly the library's displacement after 30 ticks.
     let out = temp("series.pvd");
-    let status = server()
-        .args(["run", "--seconds", "0.5", "--export-every", "0.1"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
+    succeed(
+        server()
+            .args(["run", "--seconds", "0.5", "--export-every", "0.1"])
+            .arg(&out),
     );
     let pvd = std::fs::read_to_string(&out).unwrap();
     let times: Vec<f64> = pvd
