@@ -145,12 +145,55 @@ fn loop_on_its_thread() {
     );
 }
 
+/// With `--trace RATE`: the reference, the engine's own reaction at `RATE` and the
+/// rendered force (calibrated model) every 50 ms, to see where the error comes from.
+fn trace(probe: &Probe, rate_hz: f64, truth: &[Vector3<f64>]) {
+    let sim = settled(rate_hz, ForceModelKind::Calibrated);
+    let device = ScriptedDevice::new(probe.trajectory(), 1e3, haptic_ticks());
+    let mut c = Coupled::new(sim, device, HAPTIC_HZ);
+    let mut reaction = Vec::with_capacity(haptic_ticks());
+    for _ in 0..haptic_ticks() {
+        c.step();
+        reaction.push(c.sim.instruments[0].report.reaction);
+    }
+    println!(
+        "| t s | reference N | engine at {rate_hz} Hz N | rendered N | rendered − reference N |"
+    );
+    println!("|---|---|---|---|---|");
+    let rendered: Vec<_> = c
+        .haptics
+        .device()
+        .recorded()
+        .map(|r| r.force.force)
+        .collect();
+    for j in (0..haptic_ticks()).step_by(50) {
+        let f = |v: &Vector3<f64>| format!("{:.3} {:.3} {:.3}", v.x, v.y, v.z);
+        println!(
+            "| {:.2} | {} | {} | {} | {:.3} |",
+            j as f64 / HAPTIC_HZ,
+            f(&truth[j]),
+            f(&reaction[j]),
+            f(&rendered[j]),
+            (rendered[j] - truth[j]).norm()
+        );
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
     }
     let probe = front_probe(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
     let truth = reference(&probe);
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(k) = args.iter().position(|a| a == "--trace") {
+        let rate = args
+            .get(k + 1)
+            .and_then(|r| r.parse().ok())
+            .expect("--trace takes a mechanics rate in Hz");
+        trace(&probe, rate, &truth);
+        return;
+    }
     let peak = truth.iter().map(|f| f.norm()).fold(0.0, f64::max);
     let rms_truth =
         (truth.iter().map(|f| f.norm_squared()).sum::<f64>() / truth.len() as f64).sqrt();
