@@ -145,3 +145,49 @@ fn a_sweeping_shaft_leaves_the_liver_to_relax() {
         );
     }
 }
+
+#[test]
+fn a_tip_withdrawn_after_a_slide_lets_the_tissue_go() {
+    // The force-error probe: the tip, its axis through the trocar, in 8 mm past the
+    // free front, slid 2 cm along +x while pressed, then withdrawn to 1 cm in front.
+    // Friction drags the tissue sideways; on the coarse liver the tip press holds
+    // vertices of the large triangle under it a few radii beside the axis, and those
+    // must go once the tip no longer presses their triangle.
+    for rate in [30.0, 60.0, 1000.0] {
+        let mut scene = Scene::default_scene();
+        scene.mechanics.rate_hz = rate;
+        let mut sim = scene.build().unwrap();
+        sim.solve_static();
+        let trocar = sim.instruments[0].trocar;
+        let front = front_point(&sim);
+        let start = front + nalgebra::Vector3::new(-0.01, 0.0, 0.01);
+        let tip_at = |t: f64| {
+            let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
+            let z = -0.018 * (ramp(0.0, 1.0) - ramp(2.5, 3.0));
+            start + nalgebra::Vector3::new(0.02 * ramp(1.25, 2.25), 0.0, z)
+        };
+        let (mut dragged, mut last_held) = (0usize, 0.0);
+        for k in 1..=ticks(&sim, 3.5) {
+            let t = k as f64 * sim.dt;
+            let tip = tip_at(t);
+            let axis = trocar - tip;
+            sim.set_pose(0, Some(pose(tip.into(), axis.into())));
+            sim.tick();
+            check_invariants(&sim).unwrap();
+            if (2.0..2.5).contains(&t) {
+                dragged = dragged.max(sim.instruments[0].held.len());
+            }
+            if t > 3.0 && !sim.instruments[0].held.is_empty() {
+                last_held = t - 3.0;
+            }
+        }
+        println!("{rate} Hz: {dragged} held sliding, last held {last_held} s after");
+        assert!(dragged > 0, "{rate} Hz: the slide held nothing");
+        assert!(
+            last_held <= 0.1,
+            "{rate} Hz: still holds {:?} {last_held} s after the withdrawal, reaction {}",
+            sim.instruments[0].held,
+            sim.instruments[0].report.reaction
+        );
+    }
+}

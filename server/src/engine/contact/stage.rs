@@ -36,6 +36,7 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
+use super::closest::closest_point_triangle;
 use super::edges::stop_colliding_edges;
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
@@ -242,7 +243,7 @@ impl ContactStage {
                     .filter(|n| (n.point - pose.tip).norm() <= reach);
             }
             ins.report.moved_vertices = self.s.moved.len() as u32;
-            self.hold_and_release(k, ins, model, state, imposed);
+            self.hold_and_release(k, ins, surface, model, state, imposed);
             self.collect_shaft_edges(ins, surface, state);
         }
         // One more pass for every instrument, tip and push-out, so that what one
@@ -373,6 +374,7 @@ impl ContactStage {
         &mut self,
         k: usize,
         ins: &mut Instrument,
+        surface: &Surface,
         model: &ElasticModel,
         state: &State,
         imposed: &mut Imposed,
@@ -405,6 +407,7 @@ impl ContactStage {
                 length,
                 radius,
                 ins_params,
+                || tip_touches_a_triangle_of(surface, v, &pose.tip, radius, &state.x),
             );
             let keep = match hold {
                 Hold::Stick => true,
@@ -545,6 +548,17 @@ enum Hold {
 /// withdrawn instrument kept dragging tissue it no longer pressed; releasing a
 /// slipping vertex instead of sliding it made it flip between held and free every
 /// other tick under a steady sideways push.
+///
+/// Off the instrument's body — on the tip's end further than [`OFF_SHAFT`]·r from
+/// the axis — a vertex touches no part of the instrument: it lies on the tip plane
+/// only because the tip press laid its whole triangle there (a coarse mesh cannot
+/// bend around the tip). It stays held only while the tip still presses on that
+/// triangle or another of the vertex's triangles: one of them within
+/// [`OFF_SHAFT`]·r of the tip `P` (a triangle laid on the tip plane is at `r`).
+/// Without this a tip withdrawn after a slide kept tissue it had dragged sideways,
+/// six radii from its axis and a centimetre out of the liver, with 0.7 N: on the
+/// unbounded tip plane, whose normal is `−Z`, the tissue's sideways pull counted as
+/// a push on the tip's end.
 fn stays_held(
     x: &Point3<f64>,
     reaction: &Vector3<f64>,
@@ -552,10 +566,14 @@ fn stays_held(
     length: f64,
     radius: f64,
     (tip_contact, friction, adhesion): (bool, f64, f64),
+    pressed_by_tip: impl FnOnce() -> bool,
 ) -> Hold {
-    let Some(m) = contact_normal(x, pose, length, radius, tip_contact) else {
+    let Some((m, on_body)) = contact_normal(x, pose, length, radius, tip_contact) else {
         return Hold::Release;
     };
+    if !on_body && !pressed_by_tip() {
+        return Hold::Release;
+    }
     let normal = -reaction.dot(&m);
     if normal < -adhesion || (normal <= 0.0 && adhesion == 0.0) {
         return Hold::Release;
@@ -570,7 +588,9 @@ fn stays_held(
 }
 
 /// The instrument's outward surface normal `m` at a held vertex `x`: `−Z` on the
-/// tip's flat end, else the radial direction from the axis; `None` on the axis.
+/// tip's flat end, else the radial direction from the axis; `None` on the axis. With
+/// it, whether `x` is on the instrument's body: not on the tip's end further than
+/// [`OFF_SHAFT`]·r from the axis.
 ///
 /// The tip's end is where the vertex lies at or beyond the tip (`β ≤ 0`), and, with
 /// a pressing tip, also where it lies off the shaft's surface (beyond
@@ -586,16 +606,34 @@ fn contact_normal(
     length: f64,
     radius: f64,
     tip_contact: bool,
-) -> Option<Vector3<f64>> {
+) -> Option<(Vector3<f64>, bool)> {
     let c = super::closest::closest_point_axis(x, pose, length);
     let level = (x - pose.tip).dot(&pose.axis);
-    let at_tip =
-        (c.beta <= 0.0 && level <= 0.0) || (c.distance() > OFF_SHAFT * radius && level <= radius);
+    let off_shaft = c.distance() > OFF_SHAFT * radius;
+    let at_tip = (c.beta <= 0.0 && level <= 0.0) || (off_shaft && level <= radius);
     if at_tip && tip_contact {
-        Some(-pose.axis.into_inner())
+        Some((-pose.axis.into_inner(), !off_shaft))
     } else {
-        c.offset.try_normalize(0.0)
+        c.offset.try_normalize(0.0).map(|m| (m, true))
     }
+}
+
+/// Whether one of surface vertex `v`'s triangles comes within [`OFF_SHAFT`]·r of the
+/// tip `P`: whether the tip still presses on it.
+fn tip_touches_a_triangle_of(
+    surface: &Surface,
+    v: u32,
+    tip: &Point3<f64>,
+    radius: f64,
+    x: &[Point3<f64>],
+) -> bool {
+    let slot = surface.surface_index[v as usize] as usize;
+    let around = surface.vertex_triangle_offsets[slot] as usize
+        ..surface.vertex_triangle_offsets[slot + 1] as usize;
+    surface.vertex_triangles[around].iter().any(|&t| {
+        let tri = surface.triangles[t as usize].map(|w| x[w as usize]);
+        (closest_point_triangle(tip, &tri).point - tip).norm() <= OFF_SHAFT * radius
+    })
 }
 
 /// Distance from the axis, in radii, beyond which a held vertex is off the shaft's
