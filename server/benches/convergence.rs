@@ -33,21 +33,9 @@
 //!
 //! # Hertz
 //!
-//! Then the instrument's hemispherical tip (radius `R` = its radius, 5 mm) indents a
-//! block of tissue (80 × 80 mm, 60 mm deep, its bottom face fixed, no gravity, no
-//! friction, the linear model: the setting of Hertz's theory) by `d` = 0.5, 1, 1.5 and
-//! 2 mm, on a grid graded to `h₀` = 0.35 mm within 3.5 mm of the contact (the contact
-//! radius `a ≈ √(R d)` is 1.6–3.2 mm) and growing by 1.4 per step outward
-//! ([`kuhn_grid`]). Each depth is a static solve, repeated at the same pose until the
-//! contact set stops changing. The reaction is compared with:
-//! - Hertz: `F = 4/3 · E/(1−ν²) · √R · d^{3/2}` (half-space, `d ≪ R`);
-//! - Sneddon's exact rigid sphere on a half-space (no `d ≪ R`):
-//!   `d = (a/2) ln((R+a)/(R−a))`, `F = E/(2(1−ν²)) · ((a²+R²) ln((R+a)/(R−a)) − 2aR)`;
-//! - Hertz with Dimitriadis et al.'s (2002) correction for a layer of thickness `h`
-//!   bonded to a rigid base, `χ = √(R d)/h`:
-//!   `F · (1 + 1.133χ + 1.283χ² + 0.769χ³ + 0.0975χ⁴)` (their ν = 0.5 fit); the block's
-//!   free sides make it softer than their infinite layer, so the truth for this block
-//!   lies between the half-space and this.
+//! Then the instrument's tip indents a graded block of tissue by 0.5–2 mm, against
+//! Hertz, Sneddon's exact sphere and the bonded-layer correction (the set-up and the
+//! formulas: `server/tests/common/hertz.rs`, shared with the Hertz test).
 //!
 //! Flags: `--gestures-only`, `--hertz-only`, `--with-300k`.
 
@@ -58,16 +46,17 @@ mod common;
 #[allow(dead_code)]
 mod gestures;
 
+/// The Hertz test's block and references.
+#[path = "../tests/common/hertz.rs"]
+#[allow(dead_code)]
+mod indentation;
+
 use common::*;
 use gestures::front_point;
+use indentation::*;
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::elastic::Formulation;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
-use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{graded_lines, graded_lines_symmetric, kuhn_grid};
-use laparo_server::engine::scene::limits::max_cg_iterations;
-use laparo_server::engine::scene::{BoxSpec, Scene};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -204,112 +193,40 @@ fn deviation(values: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The graded block of the Hertz check: top face at `z = 0`, bottom at `−BLOCK_DEPTH`.
-const BLOCK_HALF_WIDTH: f64 = 0.04;
-const BLOCK_DEPTH: f64 = 0.06;
-
-/// Static passes at one depth stop when the reaction changes by less than this,
-/// relative: a hundredth of the 10% the check allows.
-const PASS_TOLERANCE: f64 = 1e-3;
-const MAX_PASSES: usize = 40;
-
-fn block() -> TetMesh {
-    let (h0, core, growth) = (0.35e-3, 3.5e-3, 1.4);
-    let x = graded_lines_symmetric(h0, core, growth, BLOCK_HALF_WIDTH);
-    let z: Vec<f64> = graded_lines(h0, core, growth, BLOCK_DEPTH)
-        .iter()
-        .rev()
-        .map(|d| -d)
-        .collect();
-    let (positions, tets) = kuhn_grid(&[x.clone(), x, z]);
-    TetMesh::from_tets(positions, tets).expect("the graded block is valid")
-}
-
-/// Sneddon's rigid sphere of radius `r` pressed `d` into a half-space of plane-strain
-/// modulus `e_star = E/(1−ν²)`: the contact radius from `d = (a/2) ln((r+a)/(r−a))`
-/// (increasing in `a` on `(0, r)`, found by bisection), then the force.
-fn sneddon(e_star: f64, r: f64, d: f64) -> f64 {
-    let depth = |a: f64| 0.5 * a * ((r + a) / (r - a)).ln();
-    let (mut lo, mut hi) = (0.0, r * (1.0 - 1e-12));
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if depth(mid) < d { lo = mid } else { hi = mid }
-    }
-    let a = 0.5 * (lo + hi);
-    0.5 * e_star * ((a * a + r * r) * ((r + a) / (r - a)).ln() - 2.0 * a * r)
-}
-
-fn hertz() {
-    let mesh = block();
-    let mut scene = Scene::default_scene();
-    scene.gravity = [0.0; 3];
-    scene.material.model = Formulation::Linear;
-    scene.mechanics.integrator = IntegratorKind::Static;
-    scene.mechanics.cg_tolerance = 1e-8;
-    scene.fixed.surface_only = false;
-    scene.fixed.boxes = vec![BoxSpec {
-        min: [-1.0, -1.0, -1.0],
-        max: [1.0, 1.0, -BLOCK_DEPTH + 1e-6],
-    }];
-    scene.instruments.truncate(1);
-    scene.instruments[0].friction = 0.0;
-    scene.mechanics.cg_max_iterations = max_cg_iterations(mesh.vertex_count());
-    let (e, nu) = (scene.material.young_modulus, scene.material.poisson_ratio);
-    let e_star = e / (1.0 - nu * nu);
+fn hertz_block() {
+    let mut sim = block_scene();
+    let e_star = plane_strain_modulus(&sim);
+    let m = &sim.model.materials[0];
     println!(
-        "\nHertz: tip of radius R indenting a block 80 × 80 × 60 mm ({} tetrahedra, {} vertices), E = {e} Pa, ν = {nu}, linear, static, no friction",
-        mesh.tets.len(),
-        mesh.vertex_count()
+        "\nHertz: tip of radius R indenting a block 80 × 80 × 60 mm ({} tetrahedra, {} vertices), E = {} Pa, ν = {}, linear, static, no friction",
+        sim.mesh.tets.len(),
+        sim.mesh.vertex_count(),
+        m.young_modulus,
+        m.poisson_ratio
     );
-    let mut sim = scene.build_on(mesh).expect("the block scene builds");
     let r = sim.instruments[0].radius;
     println!(
-        "| d mm | reaction N | Hertz N | Sneddon N | bonded-layer Hertz N | vs Hertz | vs Sneddon | vs bonded layer | held | static passes | CG its |"
+        "| d mm | reaction N | Hertz N | Sneddon N | bonded-layer Hertz N | vs Hertz | vs Sneddon | vs bonded layer | held | static passes (last change) | CG its |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    let axis = Unit::new_normalize(Vector3::z());
-    // Approach from above, so the stage sees the surface from outside first.
-    sim.set_pose(
-        0,
-        Some(InstrumentPose::new(Point3::new(0.0, 0.0, r + 0.005), axis)),
-    );
-    sim.tick();
     for d in [0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3] {
-        let pose = InstrumentPose::new(Point3::new(0.0, 0.0, r - d), axis);
-        let mut passes = 0;
-        let mut its = 0u64;
-        let mut last = f64::NAN;
-        let mut change = f64::NAN;
-        // The same pose until the reaction stops changing (the contact set settled).
-        for _ in 0..MAX_PASSES {
-            sim.set_pose(0, Some(pose));
-            let report = sim.tick();
-            its += report.cg_iterations as u64;
-            passes += 1;
-            let f = sim.instruments[0].report.reaction.z;
-            change = (f - last).abs() / f.abs();
-            if change <= PASS_TOLERANCE {
-                break;
-            }
-            last = f;
-        }
-        let f = sim.instruments[0].report.reaction.z;
-        let hertz = 4.0 / 3.0 * e_star * r.sqrt() * d.powf(1.5);
-        let chi = (r * d).sqrt() / BLOCK_DEPTH;
-        let bonded = hertz
-            * (1.0
-                + 1.133 * chi
-                + 1.283 * chi.powi(2)
-                + 0.769 * chi.powi(3)
-                + 0.0975 * chi.powi(4));
-        let sneddon = sneddon(e_star, r, d);
+        let i = indent(&mut sim, d);
+        let f = i.force;
+        let (hertz, sneddon, bonded) = (
+            hertz(e_star, r, d),
+            sneddon(e_star, r, d),
+            bonded_layer(e_star, r, d),
+        );
         println!(
-            "| {:.1} | {f:.4} | {hertz:.4} | {sneddon:.4} | {bonded:.4} | {:+.1}% | {:+.1}% | {:+.1}% | {} | {passes} ({change:.0e}) | {its} |",
+            "| {:.1} | {f:.4} | {hertz:.4} | {sneddon:.4} | {bonded:.4} | {:+.1}% | {:+.1}% | {:+.1}% | {} | {} ({:.0e}) | {} |",
             d * 1e3,
             100.0 * (f - hertz) / hertz,
             100.0 * (f - sneddon) / sneddon,
             100.0 * (f - bonded) / bonded,
-            sim.instruments[0].held.len(),
+            i.held,
+            i.passes,
+            i.change,
+            i.cg_iterations
         );
     }
 }
@@ -317,7 +234,7 @@ fn hertz() {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if !args.iter().any(|a| a == "--gestures-only") {
-        hertz();
+        hertz_block();
     }
     if args.iter().any(|a| a == "--hertz-only") {
         return;

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod contact;
+pub mod hertz;
 pub mod process;
 
 use laparo_server::engine::integrate::{IntegratorKind, mechanical_energy};
