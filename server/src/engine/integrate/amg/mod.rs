@@ -35,6 +35,7 @@
 //! nothing.
 
 mod aggregate;
+mod blocks;
 mod cycle;
 mod dense;
 mod prolong;
@@ -45,9 +46,9 @@ pub use setup::AmgError;
 
 use nalgebra::Vector3;
 
+use blocks::Blocks;
 use dense::DenseCholesky;
 use prolong::BlockDiag;
-use sparse::Csr;
 
 /// Strength threshold θ on the finest level: the value Vaněk, Mandel and Brezina
 /// recommend for elasticity, halved on each coarser level (their `θ_ℓ = 0.08 · ½^ℓ`),
@@ -73,8 +74,8 @@ pub const SWEEPS: usize = 1;
 struct Fine {
     /// `ω = 4 / (3 ρ(D⁻¹ A))` of the rest operator.
     omega: f64,
-    p: Csr,
-    r: Csr,
+    p: Blocks<3, 6>,
+    r: Blocks<6, 3>,
     t: Vec<Vector3<f64>>,
     flat: Vec<f64>,
 }
@@ -82,11 +83,11 @@ struct Fine {
 /// A coarse level above the coarsest.
 #[derive(Clone, Debug)]
 struct Level {
-    a: Csr,
+    a: Blocks<6, 6>,
     dinv: BlockDiag,
     omega: f64,
-    p: Csr,
-    r: Csr,
+    p: Blocks<6, 6>,
+    r: Blocks<6, 6>,
     x: Vec<f64>,
     b: Vec<f64>,
     t: Vec<f64>,
@@ -114,9 +115,11 @@ pub struct Amg {
 pub struct LevelSizes {
     /// Unknowns of each level, finest first.
     pub unknowns: Vec<usize>,
-    /// Stored entries of each coarse level's operator.
+    /// Stored entries of each coarse level's operator (with the zeros its blocks
+    /// hold; the coarsest's dense square).
     pub nonzeros: Vec<usize>,
-    /// Stored entries of each prolongator, finest first.
+    /// Stored entries of each prolongator, finest first (with the zeros of its
+    /// blocks).
     pub prolongator_nonzeros: Vec<usize>,
 }
 
@@ -128,13 +131,13 @@ impl Amg {
 
     /// Unknowns and nonzeros of each coarse level (the finest is the caller's).
     pub fn coarse_sizes(&self) -> LevelSizes {
-        let mut unknowns: Vec<usize> = self.levels.iter().map(|l| l.a.rows).collect();
-        let mut nonzeros: Vec<usize> = self.levels.iter().map(|l| l.a.nnz()).collect();
+        let mut unknowns: Vec<usize> = self.levels.iter().map(|l| l.x.len()).collect();
+        let mut nonzeros: Vec<usize> = self.levels.iter().map(|l| l.a.entries()).collect();
         let n = self.coarsest.factor.order();
         unknowns.push(n);
         nonzeros.push(n * n);
-        let mut prolongator_nonzeros = vec![self.fine.p.nnz()];
-        prolongator_nonzeros.extend(self.levels.iter().map(|l| l.p.nnz()));
+        let mut prolongator_nonzeros = vec![self.fine.p.entries()];
+        prolongator_nonzeros.extend(self.levels.iter().map(|l| l.p.entries()));
         LevelSizes {
             unknowns,
             nonzeros,

@@ -22,8 +22,10 @@
 //! of `P_tent`, its columns the aggregate's coarse unknowns; `R_a` are the modes on
 //! the coarse level, so `P_tent B_coarse = B` exactly. A column whose remainder is
 //! below [`DROP`] of its own size is dependent on the previous ones (a single vertex
-//! carries three independent modes, two vertices five) and is dropped: coarse nodes
-//! hold up to six unknowns.
+//! carries three independent modes, two vertices five) and is dropped; the
+//! aggregate's coarse node still holds six unknowns, the missing ones padding with no
+//! prolongator column (so that every coarse block is 6×6, see
+//! [`blocks`](super::blocks)).
 //!
 //! **Smoothing.** `P = (I − ω D⁻¹ A) P_tent`, with `D` the block diagonal of `A` and
 //! `ω = 4 / (3 ρ(D⁻¹ A))`: the damped Jacobi step that best damps the upper two
@@ -218,8 +220,10 @@ pub fn tentative(
             row_first[u] = first;
             row_values[u] = q.iter().map(|qj| qj[i]).collect();
         }
+        // Padding unknowns carry no mode.
         coarse_b.extend(r.iter().take(q.len()).copied());
-        coarse_start.push(first + q.len());
+        coarse_b.extend(std::iter::repeat_n([0.0; 6], 6 - q.len()));
+        coarse_start.push(first + 6);
     }
     let mut start = vec![0];
     let (mut col, mut val) = (Vec::new(), Vec::new());
@@ -273,41 +277,5 @@ pub fn spectral_radius(a: &Csr, dinv: &BlockDiag) -> f64 {
 /// `P = (I − ω D⁻¹ A) P_tent`.
 pub fn smooth(a: &Csr, dinv: &BlockDiag, p_tent: &Csr, omega: f64) -> Csr {
     let dap = dinv.to_csr().times(&a.times(p_tent));
-    add_scaled(p_tent, &dap, -omega)
-}
-
-/// `A + s B`, same shape, exact zeros dropped.
-fn add_scaled(a: &Csr, b: &Csr, s: f64) -> Csr {
-    let mut start = vec![0];
-    let (mut col, mut val) = (Vec::new(), Vec::new());
-    for r in 0..a.rows {
-        let (ac, av) = a.row(r);
-        let (bc, bv) = b.row(r);
-        let (mut i, mut j) = (0, 0);
-        while i < ac.len() || j < bc.len() {
-            let (c, v) = if j == bc.len() || (i < ac.len() && ac[i] < bc[j]) {
-                i += 1;
-                (ac[i - 1], av[i - 1])
-            } else if i == ac.len() || bc[j] < ac[i] {
-                j += 1;
-                (bc[j - 1], s * bv[j - 1])
-            } else {
-                i += 1;
-                j += 1;
-                (ac[i - 1], av[i - 1] + s * bv[j - 1])
-            };
-            if v != 0.0 {
-                col.push(c);
-                val.push(v);
-            }
-        }
-        start.push(col.len());
-    }
-    Csr {
-        rows: a.rows,
-        cols: a.cols,
-        start,
-        col,
-        val,
-    }
+    p_tent.add_scaled(&dap, -omega)
 }

@@ -4,6 +4,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::aggregate::{aggregate, strength};
+use super::blocks::Blocks;
 use super::dense::DenseCholesky;
 use super::prolong::{BlockDiag, rigid_modes, smooth, spectral_radius, tentative};
 use super::sparse::Csr;
@@ -62,14 +63,14 @@ impl Amg {
             let (p_tent, coarse_modes, coarse_start) = tentative(&agg, count, &node_start, &modes);
             let p = smooth(&a, &dinv, &p_tent, omega);
             let r = p.transpose();
-            let coarse = r.times(&a.times(&p));
+            let coarse = r.times(&a.times(&p)).symmetrised().with_padded_diagonal();
             let rows = a.rows;
             match &fine {
                 None => {
                     fine = Some(Fine {
                         omega,
-                        p,
-                        r,
+                        p: Blocks::from_csr(&p),
+                        r: Blocks::from_csr(&r),
                         t: vec![Vector3::zeros(); n],
                         flat: vec![0.0; 3 * n],
                     })
@@ -78,11 +79,11 @@ impl Amg {
                     x: vec![0.0; rows],
                     b: vec![0.0; rows],
                     t: vec![0.0; rows],
-                    a,
+                    a: Blocks::from_csr(&a),
                     dinv,
                     omega,
-                    p,
-                    r,
+                    p: Blocks::from_csr(&p),
+                    r: Blocks::from_csr(&r),
                 }),
             }
             if coarse.rows <= MAX_COARSE {
@@ -94,10 +95,8 @@ impl Amg {
                         dense[i * unknowns + c as usize] = v;
                     }
                 }
-                let factor = DenseCholesky::new(unknowns, |i, j| {
-                    0.5 * (dense[i * unknowns + j] + dense[j * unknowns + i])
-                })
-                .ok_or(AmgError::NotPositiveDefinite { unknowns })?;
+                let factor = DenseCholesky::new(unknowns, |i, j| dense[i * unknowns + j])
+                    .ok_or(AmgError::NotPositiveDefinite { unknowns })?;
                 return Ok(Amg {
                     scales: (mass_scale, stiffness_scale),
                     fine: fine.expect("the finest level is built first"),

@@ -1,11 +1,8 @@
-//! Scalar compressed-sparse-row matrices for the multigrid hierarchy: its prolongators,
-//! restrictions and coarse operators, and the products that build them.
-//!
-//! The fine operator stays the engine's [`BlockMatrix`] (3×3 blocks, half stored);
-//! coarse unknowns come in groups of up to six (the rigid-body modes an aggregate
-//! carries), and fewer where an aggregate cannot hold all six, so coarse levels are
-//! scalar. Products are Gustavson's row-by-row algorithm with a dense accumulator
-//! (setup only: they allocate).
+//! Scalar compressed-sparse-row matrices for building the multigrid hierarchy: the
+//! rest system matrix, prolongators, restrictions and coarse operators, and the
+//! products that form them. Products are Gustavson's row-by-row algorithm with a
+//! dense accumulator (setup only: they allocate). A built level keeps its matrices
+//! as fixed-shape blocks ([`Blocks`](super::blocks::Blocks)) for the cycle.
 
 use crate::engine::elastic::BlockMatrix;
 
@@ -94,19 +91,6 @@ impl Csr {
         }
     }
 
-    /// `out += A x`.
-    #[inline]
-    pub fn mul_add(&self, x: &[f64], out: &mut [f64]) {
-        for (r, o) in out.iter_mut().enumerate().take(self.rows) {
-            let (c, v) = self.row(r);
-            *o += c
-                .iter()
-                .zip(v)
-                .map(|(&c, &v)| v * x[c as usize])
-                .sum::<f64>();
-        }
-    }
-
     /// `Aᵀ`.
     pub fn transpose(&self) -> Csr {
         let mut count = vec![0usize; self.cols + 1];
@@ -181,8 +165,89 @@ impl Csr {
         }
     }
 
-    /// Bytes held.
-    pub fn heap_bytes(&self) -> usize {
-        self.start.capacity() * 8 + self.col.capacity() * 4 + self.val.capacity() * 8
+    /// `A + s B`, same shape, exact zeros dropped.
+    pub fn add_scaled(&self, b: &Csr, s: f64) -> Csr {
+        let mut start = vec![0];
+        let (mut col, mut val) = (Vec::new(), Vec::new());
+        for r in 0..self.rows {
+            let (ac, av) = self.row(r);
+            let (bc, bv) = b.row(r);
+            let (mut i, mut j) = (0, 0);
+            while i < ac.len() || j < bc.len() {
+                let (c, v) = if j == bc.len() || (i < ac.len() && ac[i] < bc[j]) {
+                    i += 1;
+                    (ac[i - 1], av[i - 1])
+                } else if i == ac.len() || bc[j] < ac[i] {
+                    j += 1;
+                    (bc[j - 1], s * bv[j - 1])
+                } else {
+                    i += 1;
+                    j += 1;
+                    (ac[i - 1], av[i - 1] + s * bv[j - 1])
+                };
+                if v != 0.0 {
+                    col.push(c);
+                    val.push(v);
+                }
+            }
+            start.push(col.len());
+        }
+        Csr {
+            rows: self.rows,
+            cols: self.cols,
+            start,
+            col,
+            val,
+        }
+    }
+
+    /// `½ (A + Aᵀ)`: a product such as `Pᵀ A P` is symmetric only to round-off.
+    pub fn symmetrised(&self) -> Csr {
+        let mut s = self.add_scaled(&self.transpose(), 1.0);
+        s.val.iter_mut().for_each(|v| *v *= 0.5);
+        s
+    }
+
+    /// The matrix with a diagonal entry on every empty row: the coarse unknowns
+    /// that pad an aggregate to six (see [`tentative`](super::prolong::tentative))
+    /// have no entries, and get the mean diagonal of the matrix, so that they stay
+    /// decoupled (no prolongator column reaches them) without making the level
+    /// singular or changing the scale its strength of connection compares.
+    pub fn with_padded_diagonal(self) -> Csr {
+        let empty = (0..self.rows)
+            .filter(|&r| self.start[r] == self.start[r + 1])
+            .count();
+        if empty == 0 {
+            return self;
+        }
+        let (mut sum, mut count) = (0.0, 0usize);
+        for r in 0..self.rows {
+            let (cs, vs) = self.row(r);
+            if let Some(k) = cs.iter().position(|&c| c as usize == r) {
+                sum += vs[k];
+                count += 1;
+            }
+        }
+        let fill = if count > 0 { sum / count as f64 } else { 1.0 };
+        let mut start = vec![0];
+        let (mut col, mut val) = (Vec::new(), Vec::new());
+        for r in 0..self.rows {
+            let (cs, vs) = self.row(r);
+            if cs.is_empty() {
+                col.push(r as u32);
+                val.push(fill);
+            } else {
+                col.extend_from_slice(cs);
+                val.extend_from_slice(vs);
+            }
+            start.push(col.len());
+        }
+        Csr {
+            rows: self.rows,
+            cols: self.cols,
+            start,
+            col,
+            val,
+        }
     }
 }

@@ -1,6 +1,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::aggregate::{NONE, aggregate, strength};
+use super::blocks::Blocks;
 use super::dense::DenseCholesky;
 use super::prolong::{BlockDiag, rigid_modes, smooth, spectral_radius, tentative};
 use super::sparse::Csr;
@@ -134,6 +135,28 @@ fn the_prolongators_reproduce_the_rigid_body_modes() {
             assert!(error <= 1e-10 * size, "{name} P b_c − b = {error:e}");
         }
     }
+    // The cycle's block form of each prolongator and restriction is the same matrix.
+    let x: Vec<f64> = (0..p.cols).map(|k| (k as f64 * 0.37).sin()).collect();
+    let y: Vec<f64> = (0..p.rows).map(|k| (k as f64 * 0.11).cos()).collect();
+    // (Equal to the summation order: within 1e-14 of the largest entry.)
+    let close = |want: &[f64], got: &[f64], what: &str| {
+        let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let worst = want
+            .iter()
+            .zip(got)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 1e-14 * scale, "{what} in blocks: off by {worst:e}");
+    };
+    let (mut want, mut got) = (vec![0.0; p.rows], vec![0.0; p.rows]);
+    p.mul(&x, &mut want);
+    Blocks::<3, 6>::from_csr(&p).mul(&x, &mut got);
+    close(&want, &got, "P");
+    let r = p.transpose();
+    let (mut want, mut got) = (vec![0.0; r.rows], vec![0.0; r.rows]);
+    r.mul(&y, &mut want);
+    Blocks::<6, 3>::from_csr(&r).mul(&y, &mut got);
+    close(&want, &got, "Pᵀ");
     // The tentative columns are orthonormal: Pᵀ P = I.
     let ptp = p_tent.transpose().times(&p_tent);
     for r in 0..ptp.rows {
