@@ -5,6 +5,12 @@
 //! grow with the mesh; smoothed-aggregation multigrid ([`amg`](super::amg)) costs a
 //! setup and several products per iteration, and its iterations stay nearly flat.
 //! `auto` (the default) takes multigrid from [`AUTO_AMG_VERTICES`] vertices up.
+//!
+//! A multigrid iteration costs about five products of the fine matrix where block
+//! Jacobi's costs one, so the scene limit on a tick's work (CG iteration cap times
+//! vertices, [`MAX_TICK_WORK`](crate::engine::scene::limits::MAX_TICK_WORK)) bounds
+//! a multigrid tick that never converges about five times more loosely; such a tick
+//! still stops between iterations when its session closes.
 
 use serde::{Deserialize, Serialize};
 
@@ -26,13 +32,15 @@ pub enum PreconditionerKind {
 }
 
 /// Meshes with at least this many vertices use multigrid under `auto`. Measured
-/// with the bench `step` (implicit, 60 Hz, tolerance 1e-4, one core): multigrid cuts
-/// the iterations a tick from 6, 10, 16, 27 and 188 to 2, 2, 3, 4 and 14 from SOFA's
-/// liver to liver-300k, but a V-cycle costs about six products of the fine matrix,
-/// so the tick only gets faster where block Jacobi needs far more than six times the
-/// iterations: liver-300k (60k vertices, twice as fast), not liver-80k (17k
-/// vertices, 20% slower) or smaller.
-pub const AUTO_AMG_VERTICES: usize = 40_000;
+/// with the bench `step` (implicit, 60 Hz, tolerance 1e-4, one core, a loaded
+/// machine): multigrid cuts the iterations a tick from 6, 10, 16, 27 and 195 to 2,
+/// 2, 3, 4 and 14 from SOFA's liver (181 vertices) to liver-300k (60k), and the
+/// linear tick from 0.50 to 0.33 ms on liver-5k (1,408 vertices), 6.7 to 5.2 ms on
+/// liver-20k and 40 to 31 ms on liver-80k; the corotational tick, dominated by its
+/// rotation update at these sizes, is about the same either way. On SOFA's liver the
+/// two are within a few microseconds of each other, and block Jacobi keeps the
+/// behaviour the haptic tests were tuned with.
+pub const AUTO_AMG_VERTICES: usize = 1000;
 
 impl PreconditionerKind {
     /// Whether a model of `vertices` vertices is solved with multigrid.

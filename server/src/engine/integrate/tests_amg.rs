@@ -191,3 +191,34 @@ fn multigrid_iterations_stay_flat_on_refined_boxes() {
     assert!(2 * counts[2] <= 3 * counts[0], "{report}");
     assert!(jacobi[2] > 3 * jacobi[0], "{report}");
 }
+
+#[test]
+fn a_hierarchy_that_cannot_be_built_leaves_block_jacobi_in_charge() {
+    // Tissue so soft that the mass term swamps every coupling: no two vertices are
+    // strongly connected, there is nothing to aggregate, and the solve goes on with
+    // block Jacobi (which is then nearly exact).
+    let mesh = box_mesh([4, 2, 2], [0.1, 0.05, 0.05]);
+    let material = Material {
+        young_modulus: 1e-9,
+        poisson_ratio: 0.3,
+        density: 1000.0,
+    };
+    let model = ElasticModel::new(&mesh, vec![material], vec![0; mesh.tets.len()]);
+    let config = IntegratorConfig {
+        preconditioner: PreconditionerKind::Amg,
+        ..IntegratorConfig::default()
+    };
+    let mut it = Integrator::new(config, &model);
+    let imposed = Imposed::new(mesh.vertex_count());
+    it.prepare(&model, imposed.mask(), 1.0 / 60.0);
+    assert!(it.amg().is_none() && !it.used_amg());
+    let mut state = State::at_rest(&model);
+    let g = Vector3::new(0.0, -9.81, 0.0);
+    for _ in 0..3 {
+        let r = it.step(&model, &mut state, &imposed, g, 1.0 / 60.0);
+        assert!(r.converged && !it.used_amg(), "{r:?}");
+    }
+    // Free fall: v = g t after three ticks, up to the damping (1 + hα per tick).
+    let v = state.v[0];
+    assert!(v.y < 0.0 && v.x.abs() < 1e-9 && v.z.abs() < 1e-9, "{v}");
+}
