@@ -23,6 +23,9 @@
 //!
 //! `-- liver-300k` (or any labels) runs those meshes instead of the default three;
 //! liver-300k's ticks take seconds, so it is not run unless asked.
+//!
+//! Each model runs with both CG preconditioners (`[mechanics] preconditioner`:
+//! block Jacobi and smoothed-aggregation multigrid).
 
 mod common;
 
@@ -37,7 +40,7 @@ use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::Formulation;
-use laparo_server::engine::integrate::{Integrator, IntegratorKind};
+use laparo_server::engine::integrate::{Integrator, IntegratorKind, PreconditionerKind};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Unit, Vector3};
 
@@ -50,9 +53,9 @@ const GAP: f64 = 0.002;
 
 fn main() {
     println!(
-        "| mesh | tetrahedra | model | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | max displacement (mm) | instrument force (N) | relative error vs static |"
+        "| mesh | tetrahedra | model | preconditioner | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | max displacement (mm) | instrument force (N) | relative error vs static |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let wanted: Vec<&'static str> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))
@@ -64,9 +67,15 @@ fn main() {
         wanted
     };
     for case in meshes(&labels) {
-        for model in [Formulation::Linear, Formulation::Corotational] {
+        let runs = [Formulation::Linear, Formulation::Corotational]
+            .into_iter()
+            .flat_map(|m| {
+                [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg].map(|p| (m, p))
+            });
+        for (model, preconditioner) in runs {
             let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
             scene.material.model = model;
+            scene.mechanics.preconditioner = preconditioner;
             let mut sim = build(&scene);
             for _ in 0..SETTLE_TICKS {
                 sim.tick();
@@ -101,7 +110,7 @@ fn main() {
             let tick = median(&mut ticks);
             let error = error_against_static(&sim);
             println!(
-                "| {} | {} | {:?} | {:.3} | {:.0} | {:.3} | {:.0} | {} | {:.2} | {:.3} | {:.1e} |",
+                "| {} | {} | {:?} | {preconditioner:?} | {:.3} | {:.0} | {:.3} | {:.0} | {} | {:.2} | {:.3} | {:.1e} |",
                 case.label,
                 sim.mesh.tets.len(),
                 model,

@@ -7,17 +7,23 @@
 //! explicit and implicit (CG tolerance 1e-4, the default), from rest: the ticks measured are the
 //! gravity transient, the busiest part of the run for CG. Then, where the budget
 //! allows (meshes up to liver-20k), the run continues to 2 s simulated and 30 ticks are
-//! timed at rest. One core. The elastic model is the default scene's (`[material] model`;
-//! linear while the default scene is linear).
+//! timed at rest. One core. Explicit runs the default scene's elastic model
+//! (`[material] model`); implicit runs the linear and the corotational model, each
+//! with both preconditioners (`[mechanics] preconditioner`: block Jacobi and
+//! smoothed-aggregation multigrid), on the same ticks.
 //! Reports per mesh: median tick times, ticks per second, substeps or CG iterations
 //! per tick (median), the achieved bytes per second, the memory the model and
-//! integrator hold, and the median of each stage of the transient ticks as
+//! integrator hold, the multigrid setup (the hierarchy built once more, timed alone:
+//! seconds, and unknowns per level), and the median of each stage of the transient ticks as
 //! `TickTiming` names them (`carry_held_vertices`, `elastic_step`, `resolve_contact`,
 //! `local_models`; the instruments stay out of the body, so the contact stages do
 //! almost nothing).
 //!
+//! `-- liver-300k` (or any labels) runs those meshes instead of all five.
+//!
 //! Achieved bytes per second: the bytes one tick streams, each array counted once per
-//! pass that reads or writes it, over the median tick. A product `K p` reads the
+//! pass that reads or writes it, over the median tick (block Jacobi only: a V-cycle's
+//! traffic is not modelled, so the column is empty for multigrid). A product `K p` reads the
 //! stiffness blocks and indices, the masses and `p` and writes its result; a CG
 //! iteration adds ten block vectors for its updates and dot products and the inverse
 //! diagonal blocks of block Jacobi; a corotational tick first reads every element and
@@ -32,25 +38,50 @@ use std::time::Instant;
 
 use common::*;
 use laparo_server::engine::elastic::{Element, Formulation};
-use laparo_server::engine::integrate::IntegratorKind;
+use laparo_server::engine::integrate::amg::Amg;
+use laparo_server::engine::integrate::{IntegratorKind, PreconditionerKind};
 use laparo_server::engine::simulation::Simulation;
 
 fn main() {
-    let labels = [
-        "sofa-liver",
-        "liver-5k",
-        "liver-20k",
-        "liver-80k",
-        "liver-300k",
-    ];
+    let wanted: Vec<&'static str> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .map(|a| &*a.leak())
+        .collect();
+    let labels = if wanted.is_empty() {
+        vec![
+            "sofa-liver",
+            "liver-5k",
+            "liver-20k",
+            "liver-80k",
+            "liver-300k",
+        ]
+    } else {
+        wanted
+    };
     println!(
-        "| mesh | vertices | tets | model | integrator | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | achieved GB/s | median tick at rest (ms) | ticks/s at rest | memory (MB) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
+        "| mesh | vertices | tets | model | integrator | preconditioner | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | achieved GB/s | median tick at rest (ms) | ticks/s at rest | memory (MB) | multigrid setup (s) | multigrid levels (unknowns) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for case in meshes(&labels) {
-        for integrator in [IntegratorKind::Explicit, IntegratorKind::Implicit] {
-            let scene = scene(&case.file, integrator, 1e-4);
+        let mut runs = vec![(
+            IntegratorKind::Explicit,
+            None,
+            PreconditionerKind::BlockJacobi,
+        )];
+        for model in [Formulation::Linear, Formulation::Corotational] {
+            for preconditioner in [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg] {
+                runs.push((IntegratorKind::Implicit, Some(model), preconditioner));
+            }
+        }
+        for (integrator, model, preconditioner) in runs {
+            let mut scene = scene(&case.file, integrator, 1e-4);
+            if let Some(model) = model {
+                scene.material.model = model;
+            }
+            scene.mechanics.preconditioner = preconditioner;
             let mut sim = build(&scene);
+            let (setup, levels) = multigrid_setup(&sim);
             let memory = sim.model.heap_bytes()
                 + sim.integrator.heap_bytes()
                 + 3 * 24 * sim.mesh.vertex_count();
@@ -97,8 +128,18 @@ fn main() {
                 "— | —".to_string()
             };
             let [carry, elastic, resolve, local] = stages.map(|mut v| median(&mut v) * 1e3);
+            let precond = match integrator {
+                IntegratorKind::Explicit => "—",
+                _ if sim.integrator.used_amg() => "amg",
+                _ => "block-jacobi",
+            };
+            let gbs = if sim.integrator.used_amg() {
+                "—".to_string()
+            } else {
+                format!("{:.2}", median(&mut bytes) / 1e9)
+            };
             println!(
-                "| {} | {} | {} | {:?} | {:?} | {:.3} | {:.0} | {:.0} | {:.0} | {:.2} | {} | {:.1} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
+                "| {} | {} | {} | {:?} | {:?} | {precond} | {:.3} | {:.0} | {:.0} | {:.0} | {gbs} | {} | {:.1} | {setup} | {levels} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
                 case.label,
                 sim.mesh.vertex_count(),
                 sim.mesh.tets.len(),
@@ -108,13 +149,47 @@ fn main() {
                 1.0 / tick,
                 median(&mut substeps),
                 median(&mut cg),
-                median(&mut bytes) / 1e9,
                 at_rest,
                 memory as f64 / 1e6,
                 n
             );
         }
     }
+}
+
+/// The multigrid hierarchy of `sim`'s implicit matrix built once more, timed alone
+/// (seconds), and its unknowns per level, finest first; dashes without multigrid.
+fn multigrid_setup(sim: &Simulation) -> (String, String) {
+    if !sim.integrator.used_amg() {
+        return ("—".to_string(), "—".to_string());
+    }
+    let (m, h) = (&sim.model, sim.dt);
+    let s_m = 1.0 + h * sim.integrator.config().damping;
+    let t = Instant::now();
+    let amg = Amg::new(
+        &m.stiffness,
+        &m.mass,
+        s_m,
+        h * h,
+        sim.imposed.mask(),
+        &m.rest,
+    )
+    .expect("the hierarchy builds");
+    let seconds = since(t);
+    let sizes = amg.coarse_sizes();
+    let mut levels = vec![format!(
+        "{} (P {:.1} M)",
+        3 * m.vertex_count(),
+        sizes.prolongator_nonzeros[0] as f64 / 1e6
+    )];
+    for (k, (n, nnz)) in sizes.unknowns.iter().zip(&sizes.nonzeros).enumerate() {
+        let p = sizes
+            .prolongator_nonzeros
+            .get(k + 1)
+            .map_or(String::new(), |p| format!(", P {:.2} M", *p as f64 / 1e6));
+        levels.push(format!("{n} (A {:.2} M{p})", *nnz as f64 / 1e6));
+    }
+    (format!("{seconds:.2}"), levels.join(" / "))
 }
 
 /// Bytes one tick streams, each array counted once per pass (see the module comment).

@@ -9,7 +9,7 @@ use std::cell::Cell;
 
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::Formulation;
-use laparo_server::engine::integrate::IntegratorKind;
+use laparo_server::engine::integrate::{IntegratorKind, PreconditionerKind};
 use laparo_server::engine::scene::Scene;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -49,11 +49,21 @@ fn ticks_allocate_nothing() {
         IntegratorKind::Static,
     ];
     let models = [Formulation::Linear, Formulation::Corotational];
-    for (kind, model) in kinds.into_iter().flat_map(|k| models.map(|m| (k, m))) {
+    let preconditioners = [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg];
+    let runs = kinds
+        .into_iter()
+        .flat_map(|k| models.map(|m| (k, m)))
+        .flat_map(|(k, m)| preconditioners.map(|p| (k, m, p)));
+    for (kind, model, preconditioner) in runs {
         let mut scene = Scene::default_scene();
         scene.mechanics.integrator = kind;
         scene.material.model = model;
+        scene.mechanics.preconditioner = preconditioner;
         let mut sim = scene.build().unwrap();
+        assert_eq!(
+            sim.integrator.used_amg(),
+            kind != IntegratorKind::Explicit && preconditioner == PreconditionerKind::Amg
+        );
         // Move some vertices as an instrument would, so imposed targets change too.
         let held: Vec<u32> = (0..sim.mesh.vertex_count() as u32)
             .filter(|i| !sim.fixed.contains(i))
@@ -77,7 +87,7 @@ fn ticks_allocate_nothing() {
         assert_eq!(
             after - before,
             0,
-            "{kind:?} {model:?}: {} allocations in 20 ticks",
+            "{kind:?} {model:?} {preconditioner:?}: {} allocations in 20 ticks",
             after - before
         );
     }
@@ -88,9 +98,12 @@ fn contact_ticks_allocate_nothing() {
     // Both instruments press the front of the liver, one with its tip and one with its
     // shaft, turning as they go (so the stage takes several sub-moves a tick).
     for model in [Formulation::Linear, Formulation::Corotational] {
-        let mut scene = Scene::default_scene();
-        scene.material.model = model;
-        contact_ticks_allocate_nothing_with(scene.build().unwrap());
+        for preconditioner in [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg] {
+            let mut scene = Scene::default_scene();
+            scene.material.model = model;
+            scene.mechanics.preconditioner = preconditioner;
+            contact_ticks_allocate_nothing_with(scene.build().unwrap());
+        }
     }
 }
 

@@ -4,11 +4,15 @@
 //! The system `A x = b` is solved for the free vertices only, the imposed ones keeping
 //! the values already in `x` ("projected" CG): residuals and search directions are kept
 //! zero on imposed vertices, which is CG on `A_ff x_f = b_f − A_fc x_c`. The
-//! preconditioner is block Jacobi, `P = diag(A_ii)⁻¹`, exact on each 3×3 vertex block.
+//! preconditioner is block Jacobi, `P = diag(A_ii)⁻¹`, exact on each 3×3 vertex block,
+//! or, when [`CgWorkspace::amg`] holds a hierarchy and [`CgWorkspace::use_amg`] is
+//! set, one V-cycle of smoothed-aggregation multigrid ([`Amg`]) whose finest level
+//! smooths with the solve's own operator and those inverse blocks.
 
 use nalgebra::{Matrix3, Vector3};
 
 use super::Interrupt;
+use super::amg::Amg;
 
 /// Buffers of one CG solve, allocated once.
 #[derive(Clone, Debug)]
@@ -19,6 +23,10 @@ pub struct CgWorkspace {
     q: Vec<Vector3<f64>>,
     /// Inverse diagonal blocks `A_ii⁻¹`, filled by the caller.
     pub precond: Vec<Matrix3<f64>>,
+    /// The multigrid hierarchy, built by the caller for the rest part of its system.
+    pub amg: Option<Amg>,
+    /// Whether the next solves precondition with [`amg`](Self::amg) (if built).
+    pub use_amg: bool,
     /// Read before each iteration: a raised flag ends the solve (unconverged).
     pub interrupt: Interrupt,
 }
@@ -52,12 +60,16 @@ impl CgWorkspace {
             q: z.clone(),
             z,
             precond: vec![Matrix3::identity(); n],
+            amg: None,
+            use_amg: false,
             interrupt: Interrupt::default(),
         }
     }
 
     pub fn heap_bytes(&self) -> usize {
-        self.r.capacity() * 24 * 4 + self.precond.capacity() * 72
+        self.r.capacity() * 24 * 4
+            + self.precond.capacity() * 72
+            + self.amg.as_ref().map_or(0, Amg::heap_bytes)
     }
 
     /// Solves `A x = b` on the free vertices (`imposed[i] == false`), starting from the
@@ -102,9 +114,16 @@ impl CgWorkspace {
                 b[i] - self.q[i]
             };
         }
+        let mut multigrid = self.amg.as_mut().filter(|_| self.use_amg);
+        if let Some(amg) = multigrid.as_mut() {
+            amg.apply(&apply, &self.precond, imposed, &self.r, &mut self.z);
+        } else {
+            for i in 0..n {
+                self.z[i] = self.precond[i] * self.r[i];
+            }
+        }
         let mut rz = 0.0;
         for i in 0..n {
-            self.z[i] = self.precond[i] * self.r[i];
             self.p[i] = self.z[i];
             rz += self.r[i].dot(&self.z[i]);
         }
@@ -134,12 +153,29 @@ impl CgWorkspace {
             let alpha = rz / pq;
             let mut rz_new = 0.0;
             let mut rr = 0.0;
-            for i in 0..n {
-                x[i] += alpha * self.p[i];
-                self.r[i] -= alpha * self.q[i];
-                self.z[i] = self.precond[i] * self.r[i];
-                rz_new += self.r[i].dot(&self.z[i]);
-                rr += self.r[i].norm_squared();
+            if let Some(amg) = multigrid.as_mut() {
+                for i in 0..n {
+                    x[i] += alpha * self.p[i];
+                    self.r[i] -= alpha * self.q[i];
+                    rr += self.r[i].norm_squared();
+                }
+                if rr.sqrt() > goal {
+                    amg.apply(&apply, &self.precond, imposed, &self.r, &mut self.z);
+                    for i in 0..n {
+                        rz_new += self.r[i].dot(&self.z[i]);
+                    }
+                } else {
+                    // Converged: the next direction, and its V-cycle, are not needed.
+                    rz_new = rz;
+                }
+            } else {
+                for i in 0..n {
+                    x[i] += alpha * self.p[i];
+                    self.r[i] -= alpha * self.q[i];
+                    self.z[i] = self.precond[i] * self.r[i];
+                    rz_new += self.r[i].dot(&self.z[i]);
+                    rr += self.r[i].norm_squared();
+                }
             }
             let beta = rz_new / rz;
             for i in 0..n {

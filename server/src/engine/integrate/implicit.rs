@@ -41,6 +41,7 @@ pub(super) fn step(
 ) -> StepReport {
     let alpha = it.config.damping;
     let mass_factor = 1.0 + h * alpha;
+    it.select_preconditioner(model, imposed.mask(), mass_factor, h * h);
     // f = K u₀ (linear), or f = K̂ u₀ + o with the rotations of x₀, which then stay
     // frozen over the tick: K is K̂ below, and K̂ changes every tick.
     let corotational = it.corotated.is_some();

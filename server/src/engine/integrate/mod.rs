@@ -13,18 +13,21 @@
 //! in lock-step; indexing them by vertex reads better than zipping five iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod amg;
 mod cg;
 mod energy;
 mod explicit;
 mod implicit;
 mod imposed;
 mod interrupt;
+mod preconditioner;
 mod statics;
 
 pub use cg::{CgReport, CgWorkspace, Stop};
 pub use energy::{kinetic_energy, mechanical_energy};
 pub use imposed::Imposed;
 pub use interrupt::Interrupt;
+pub use preconditioner::{AUTO_AMG_VERTICES, PreconditionerKind};
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -87,6 +90,8 @@ pub struct IntegratorConfig {
     pub cg_tolerance: f64,
     /// Conjugate-gradient iteration cap per solve.
     pub cg_max_iterations: u32,
+    /// The conjugate-gradient preconditioner (implicit and static).
+    pub preconditioner: PreconditionerKind,
     /// Explicit substeps are `h ≤ safety · 2/ω̂`, where `ω̂² ≥ ω_max²` is the
     /// Gershgorin bound of [`ElasticModel::max_eigenvalue_bound`]. Symplectic Euler is
     /// stable for `h ω_max < 2`; the bound already over-estimates `ω_max`, and the 0.9
@@ -101,6 +106,7 @@ impl Default for IntegratorConfig {
             damping: 10.0,
             cg_tolerance: 1e-4,
             cg_max_iterations: 1000,
+            preconditioner: PreconditionerKind::default(),
             explicit_safety: 0.9,
         }
     }
@@ -137,6 +143,10 @@ pub struct Integrator {
     cg: CgWorkspace,
     /// `h` for which the implicit preconditioner was last built (NaN: never).
     preconditioned_for: f64,
+    /// Whether solves use multigrid (the configured kind, resolved for the model).
+    uses_amg: bool,
+    /// The scales `(s_M, s_K)` for which building the hierarchy failed, if any.
+    amg_failed: Option<(f64, f64)>,
     /// Raised to end a step early (the state is then partway through the tick).
     interrupt: Interrupt,
     /// The rotations, rotated stiffness `K̂` and offset `o` of a corotational model
@@ -158,6 +168,8 @@ impl Integrator {
             start: vec![Point3::origin(); n],
             cg: CgWorkspace::new(n),
             preconditioned_for: f64::NAN,
+            uses_amg: config.preconditioner.uses_amg(n),
+            amg_failed: None,
             interrupt: Interrupt::default(),
             corotated: model.corotated(),
         }
@@ -296,6 +308,8 @@ fn model_rotation_bytes(c: &Corotated) -> usize {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_amg;
 #[cfg(test)]
 mod tests_corotational;
 #[cfg(test)]

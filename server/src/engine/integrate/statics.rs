@@ -70,6 +70,7 @@ pub(super) fn solve(
         max_iterations: it.config.cg_max_iterations,
     };
     it.preconditioned_for = f64::NAN;
+    it.select_preconditioner(model, mask, 0.0, 1.0);
     let mut report = StepReport {
         substeps: 1,
         cg_iterations: 0,

@@ -9,7 +9,7 @@ use super::files::{MAX_SCENE_BYTES, read_bounded};
 use super::limits::*;
 use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::elastic::Formulation;
-use crate::engine::integrate::IntegratorKind;
+use crate::engine::integrate::{IntegratorKind, PreconditionerKind};
 use crate::engine::local_model::ForceModelKind;
 
 /// A scene as declared in its TOML file.
@@ -142,6 +142,13 @@ pub struct MechanicsSpec {
     /// Conjugate-gradient iteration cap per tick.
     #[serde(default = "default_cg_max_iterations")]
     pub cg_max_iterations: u32,
+    /// The conjugate-gradient preconditioner (implicit and static): `"auto"` (the
+    /// default: multigrid on meshes of at least
+    /// [`AUTO_AMG_VERTICES`](crate::engine::integrate::AUTO_AMG_VERTICES) vertices,
+    /// block Jacobi on smaller ones), `"block-jacobi"` or `"amg"` (smoothed-aggregation
+    /// multigrid, built when the scene is).
+    #[serde(default)]
+    pub preconditioner: PreconditionerKind,
 }
 
 impl Default for MechanicsSpec {
@@ -152,6 +159,7 @@ impl Default for MechanicsSpec {
             damping: default_damping(),
             cg_tolerance: default_cg_tolerance(),
             cg_max_iterations: default_cg_max_iterations(),
+            preconditioner: PreconditionerKind::default(),
         }
     }
 }

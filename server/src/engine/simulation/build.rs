@@ -40,10 +40,12 @@ impl Scene {
             damping: m.damping,
             cg_tolerance: m.cg_tolerance,
             cg_max_iterations: m.cg_max_iterations,
+            preconditioner: m.preconditioner,
             ..IntegratorConfig::default()
         };
-        let integrator = Integrator::new(config, &model);
+        let mut integrator = Integrator::new(config, &model);
         self.check_tick_work(&integrator, mesh.vertex_count(), 1.0 / m.rate_hz)?;
+        integrator.prepare(&model, imposed.mask(), 1.0 / m.rate_hz);
         let state = State::at_rest(&model);
         let instruments: Vec<Instrument> = self
             .instruments

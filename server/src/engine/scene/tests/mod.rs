@@ -150,3 +150,29 @@ fn the_elastic_model_is_linear_unless_the_scene_says_corotational() {
         assert_eq!(scene.material.model, model, "{file}");
     }
 }
+
+#[test]
+fn the_preconditioner_is_auto_unless_the_scene_names_one() {
+    use crate::engine::integrate::PreconditionerKind;
+    assert_eq!(
+        parse(MINIMAL).unwrap().mechanics.preconditioner,
+        PreconditionerKind::Auto
+    );
+    for (name, kind) in [
+        ("auto", PreconditionerKind::Auto),
+        ("block-jacobi", PreconditionerKind::BlockJacobi),
+        ("amg", PreconditionerKind::Amg),
+    ] {
+        let scene = parse(&format!(
+            "{MINIMAL}\n[mechanics]\npreconditioner = \"{name}\"\n"
+        ));
+        assert_eq!(scene.unwrap().mechanics.preconditioner, kind, "{name}");
+    }
+    let msg = expect_path(
+        parse(&format!(
+            "{MINIMAL}\n[mechanics]\npreconditioner = \"ilu\"\n"
+        )),
+        "mechanics.preconditioner",
+    );
+    assert!(msg.contains("block-jacobi") && msg.contains("amg"), "{msg}");
+}

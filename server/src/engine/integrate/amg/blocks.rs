@@ -1,0 +1,108 @@
+//! The hierarchy's matrices as a cycle applies them: dense blocks of fixed shape
+//! between nodes.
+//!
+//! Every node of a level holds the same number of unknowns: three on the finest
+//! level (a vertex), six on coarser ones (an aggregate's rigid-body modes; an
+//! aggregate too small to carry six has the missing ones padded, see
+//! [`tentative`](super::prolong::tentative)). So the finest prolongator is made of
+//! 3×6 blocks, its restriction of 6×3 blocks and every coarser matrix of 6×6
+//! blocks, with one column index per block. Fixed shapes let the compiler unroll
+//! each block product, as it does for the fine stiffness's 3×3 blocks; with scalar
+//! sparse rows (an index and a loop step per entry) a V-cycle cost twice as much.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::sparse::Csr;
+
+/// A block-sparse matrix of `M × W` blocks: row node `i` holds unknowns
+/// `M i..M (i + 1)`, column node `j` the unknowns `W j..W (j + 1)`.
+#[derive(Clone, Debug, Default)]
+pub struct Blocks<const M: usize, const W: usize> {
+    /// Row node `i`'s blocks are `start[i]..start[i + 1]`.
+    start: Vec<u32>,
+    /// Column node of each block.
+    col: Vec<u32>,
+    value: Vec<SMatrix<f64, M, W>>,
+}
+
+impl<const M: usize, const W: usize> Blocks<M, W> {
+    /// `a` in blocks, every block that holds a stored entry kept whole.
+    pub fn from_csr(a: &Csr) -> Self {
+        assert!(
+            a.rows.is_multiple_of(M) && a.cols.is_multiple_of(W),
+            "whole nodes"
+        );
+        let (rows, cols) = (a.rows / M, a.cols / W);
+        let mut slot = vec![u32::MAX; cols];
+        let mut out = Blocks {
+            start: vec![0],
+            col: Vec::new(),
+            value: Vec::new(),
+        };
+        let mut row_blocks: Vec<u32> = Vec::new();
+        for i in 0..rows {
+            row_blocks.clear();
+            for r in M * i..M * (i + 1) {
+                for &c in a.row(r).0 {
+                    let j = c / W as u32;
+                    if slot[j as usize] == u32::MAX {
+                        slot[j as usize] = 0;
+                        row_blocks.push(j);
+                    }
+                }
+            }
+            row_blocks.sort_unstable();
+            for &j in &row_blocks {
+                slot[j as usize] = out.value.len() as u32;
+                out.col.push(j);
+                out.value.push(SMatrix::zeros());
+            }
+            for r in M * i..M * (i + 1) {
+                let (cs, vs) = a.row(r);
+                for (&c, &v) in cs.iter().zip(vs) {
+                    let c = c as usize;
+                    out.value[slot[c / W] as usize][(r - M * i, c % W)] = v;
+                }
+            }
+            for &j in &row_blocks {
+                slot[j as usize] = u32::MAX;
+            }
+            out.start.push(out.col.len() as u32);
+        }
+        out
+    }
+
+    /// Stored values (with the zeros inside blocks).
+    pub fn entries(&self) -> usize {
+        self.value.len() * M * W
+    }
+
+    /// `out = A x`.
+    #[inline]
+    pub fn mul(&self, x: &[f64], out: &mut [f64]) {
+        out.iter_mut().for_each(|o| *o = 0.0);
+        self.mul_add(x, out);
+    }
+
+    /// `out += A x`.
+    #[inline]
+    pub fn mul_add(&self, x: &[f64], out: &mut [f64]) {
+        for i in 0..self.start.len() - 1 {
+            let mut acc = SVector::<f64, M>::zeros();
+            for b in self.start[i] as usize..self.start[i + 1] as usize {
+                let j = self.col[b] as usize;
+                let xj = SVector::<f64, W>::from_column_slice(&x[W * j..W * (j + 1)]);
+                acc += self.value[b] * xj;
+            }
+            for (o, a) in out[M * i..M * (i + 1)].iter_mut().zip(acc.iter()) {
+                *o += a;
+            }
+        }
+    }
+
+    /// Bytes held.
+    pub fn heap_bytes(&self) -> usize {
+        (self.start.capacity() + self.col.capacity()) * 4
+            + self.value.capacity() * std::mem::size_of::<SMatrix<f64, M, W>>()
+    }
+}
