@@ -200,6 +200,78 @@ pub(super) fn negated_force(elements: &[Element], x: &[Point3<f64>], out: &mut [
     }
 }
 
+/// The elements around each vertex, in compressed rows: those of vertex `v` are
+/// `element[start[v]..start[v + 1]]`. Built once with the model, for the force on one
+/// vertex ([`negated_force_on`]).
+#[derive(Clone, Debug, Default)]
+pub struct VertexElements {
+    start: Vec<u32>,
+    element: Vec<u32>,
+}
+
+impl VertexElements {
+    pub(super) fn new(vertices: usize, elements: &[Element]) -> Self {
+        let mut start = vec![0u32; vertices + 1];
+        for e in elements {
+            for &v in &e.tet {
+                start[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..vertices {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut element = vec![0u32; start[vertices] as usize];
+        for (k, e) in elements.iter().enumerate() {
+            for &v in &e.tet {
+                element[next[v as usize] as usize] = k as u32;
+                next[v as usize] += 1;
+            }
+        }
+        VertexElements { start, element }
+    }
+
+    /// The elements that contain vertex `v`.
+    pub fn of(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        match (self.start.get(v), self.start.get(v + 1)) {
+            (Some(&a), Some(&b)) => &self.element[a as usize..b as usize],
+            _ => &[],
+        }
+    }
+
+    pub(super) fn heap_bytes(&self) -> usize {
+        (self.start.capacity() + self.element.capacity()) * 4
+    }
+}
+
+/// `Σ_{e∋v} R_e K_e (R_eᵀ x_e − X_e)` at vertex `v`: the negated elastic force on `v`
+/// alone (N), every rotation around it extracted afresh, as
+/// [`negated_force`] would give at `v`. The reaction of the tissue on a vertex an
+/// instrument holds, at the cost of the few elements around it.
+pub(super) fn negated_force_on(
+    elements: &[Element],
+    around: &VertexElements,
+    v: u32,
+    x: &[Point3<f64>],
+) -> Vector3<f64> {
+    let mut out = Vector3::zeros();
+    for &k in around.of(v) {
+        let e = &elements[k as usize];
+        let f = e.deformation_gradient(x);
+        let mut q = UnitQuaternion::identity();
+        extract_rotation(&f, &mut q, COLD_ITERATIONS);
+        let r = *q.to_rotation_matrix().matrix();
+        let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+        for (&w, g) in e.tet.iter().zip(&e.gradients()) {
+            if w == v {
+                out += rs * g;
+            }
+        }
+    }
+    out
+}
+
 /// The per-tick state of the corotational model: each element's rotation (the warm
 /// start of the next extraction), the rotated stiffness `K̂` and the offset `o`.
 /// Allocated once; [`update`](Self::update) and [`force`](Self::force) allocate
