@@ -39,7 +39,7 @@
 
 use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
-use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation};
+use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation, polar};
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 
@@ -102,6 +102,18 @@ impl Element {
     fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
         let eps = 0.5 * (a + a.transpose()) - Matrix3::identity();
         Matrix3::identity() * (self.lambda * eps.trace()) + 2.0 * self.mu * eps
+    }
+
+    /// Adds `m g_k` to `out` at each vertex `k` (`m = V R σ` gives the negated elastic
+    /// force), with `g₀ = −(g₁ + g₂ + g₃)` applied as `−(m g₁ + m g₂ + m g₃)`.
+    #[inline]
+    fn scatter(&self, m: &Matrix3<f64>, out: &mut [Vector3<f64>]) {
+        let [g1, g2, g3] = self.g;
+        let (f1, f2, f3) = (m * g1, m * g2, m * g3);
+        out[self.tet[0] as usize] -= f1 + f2 + f3;
+        out[self.tet[1] as usize] += f1;
+        out[self.tet[2] as usize] += f2;
+        out[self.tet[3] as usize] += f3;
     }
 
     /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
@@ -317,27 +329,31 @@ impl Corotated {
             .for_each(|b| *b = Matrix3::zeros());
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
-            extract_rotation(&f, q, WARM_ITERATIONS);
-            let r = *q.to_rotation_matrix().matrix();
+            let p = polar(&f, q, WARM_ITERATIONS);
+            let r = p.r;
             let g = e.gradients();
-            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+            let rs = e.volume * r * e.stress(&p.a);
             let ro = e.volume * r * e.stress(&r);
+            e.scatter(&rs, out);
+            e.scatter(&ro, &mut self.offset);
+            // K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a · g_b) I); the stored block of a
+            // transposed pair is K̂_abᵀ, the same with λ and μ swapped on the outer
+            // products.
             let gh = g.map(|g| r * g);
-            for (&v, g) in e.tet.iter().zip(&g) {
-                out[v as usize] += rs * g;
-                self.offset[v as usize] += ro * g;
-            }
+            let (vl, vm) = (e.volume * e.lambda, e.volume * e.mu);
             for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
-                let mut block = e.lambda * gh[a] * gh[b].transpose()
-                    + e.mu * gh[b] * gh[a].transpose()
-                    + Matrix3::identity() * (e.mu * g[a].dot(&g[b]));
-                block *= e.volume;
-                let k = (slot & !TRANSPOSED) as usize;
-                if slot & TRANSPOSED != 0 {
-                    self.tangent.block[k] += block.transpose();
+                let outer = gh[a] * gh[b].transpose();
+                let (p, s) = if slot & TRANSPOSED != 0 {
+                    (vm, vl)
                 } else {
-                    self.tangent.block[k] += block;
-                }
+                    (vl, vm)
+                };
+                let mut block = outer * p + outer.transpose() * s;
+                let d = vm * g[a].dot(&g[b]);
+                block.m11 += d;
+                block.m22 += d;
+                block.m33 += d;
+                self.tangent.block[(slot & !TRANSPOSED) as usize] += block;
             }
         }
     }
@@ -349,13 +365,8 @@ impl Corotated {
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
-            extract_rotation(&f, q, WARM_ITERATIONS);
-            let r = *q.to_rotation_matrix().matrix();
-            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
-            let g = e.gradients();
-            for k in 0..4 {
-                out[e.tet[k] as usize] += rs * g[k];
-            }
+            let p = polar(&f, q, WARM_ITERATIONS);
+            e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
         }
     }
 }
