@@ -14,8 +14,9 @@
 //!
 //! Why this extraction and not another:
 //! - it is warm-started from the previous tick's rotation, so once a motion is under
-//!   way one or two iterations (a few dozen flops and one `sin`/`cos`) reach round-off;
-//!   a 3×3 SVD costs several times more for every element of every tick;
+//!   way one or two iterations (a few dozen flops, no `sin`/`cos`, see
+//!   [`polar`]) reach round-off; a 3×3 SVD costs several times more for every
+//!   element of every tick;
 //! - it always returns a proper rotation (`det R = +1`), also for an inverted element
 //!   (`det F < 0`), where it converges to `U diag(1, 1, −1) Vᵀ` (`F = U Σ Vᵀ`): the
 //!   rotation that maximises `tr(Rᵀ F)`, the choice of Irving, Teran and Fedkiw
