@@ -9,20 +9,20 @@ use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::Vector3;
 
-/// `‖(M g − K u)_f‖` over the free vertices (neither supports nor held), N: what is
-/// left of the static equations once the tick is done.
+/// `‖(M g − f(x))_f‖` over the free vertices (neither supports nor held), N, with
+/// `f(x)` the elastic model's own negated force (`K u` for the linear model, the
+/// rotations extracted afresh for the corotational one): what is left of the static
+/// equations once the tick is done.
 fn free_residual(sim: &Simulation) -> f64 {
     let model = &sim.model;
+    let mut f = vec![Vector3::zeros(); model.vertex_count()];
+    model.negated_elastic_force_at(&sim.state.x, &mut f);
     let mut sum = 0.0;
-    for i in 0..model.vertex_count() {
+    for (i, f) in f.iter().enumerate() {
         if sim.imposed.is_imposed(i) {
             continue;
         }
-        let mut r = model.mass[i] * sim.gravity;
-        model
-            .stiffness
-            .for_each_in_row(i, |j, kij| r -= kij * (sim.state.x[j] - model.rest[j]));
-        sum += r.norm_squared();
+        sum += (model.mass[i] * sim.gravity - f).norm_squared();
     }
     sum.sqrt()
 }

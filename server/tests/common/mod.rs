@@ -59,21 +59,35 @@ pub struct Run {
     pub static_energy: f64,
     /// `max |x_T − x_static| / max |x_static − X|` at the end.
     pub settle_error: f64,
+    /// How far the end state is from being an equilibrium itself:
+    /// `‖(M g − f(x_T))_free‖ / ‖(M g)_free‖`, with `f(x)` the negated elastic force of
+    /// [`ElasticModel::negated_elastic_force_at`](laparo_server::engine::elastic::ElasticModel::negated_elastic_force_at)
+    /// (rotations extracted afresh), over the vertices not held.
+    pub static_residual: f64,
+    /// Ticks run.
+    pub ticks: usize,
     pub substeps: u32,
     pub cg_iterations: u64,
 }
 
 /// Runs `sim` from rest for `seconds`, then compares with its static equilibrium.
-pub fn run_to_rest(mut sim: Simulation, seconds: f64) -> Run {
-    let g = sim.gravity;
+pub fn run_to_rest(sim: Simulation, seconds: f64) -> Run {
     let ticks = (seconds / sim.dt).round() as usize;
+    run_ticks_to_rest(sim, ticks)
+}
+
+/// Runs `sim` from rest for `ticks` ticks, then compares with its static equilibrium.
+pub fn run_ticks_to_rest(mut sim: Simulation, ticks: usize) -> Run {
+    let g = sim.gravity;
     let mut run = Run {
         finite: true,
         max_energy: 0.0,
         static_energy: 0.0,
         settle_error: 0.0,
+        static_residual: 0.0,
         substeps: 0,
         cg_iterations: 0,
+        ticks,
     };
     for _ in 0..ticks {
         let r = sim.tick();
@@ -91,6 +105,7 @@ pub fn run_to_rest(mut sim: Simulation, seconds: f64) -> Run {
         }
         run.max_energy = run.max_energy.max(e);
     }
+    run.static_residual = static_residual(&sim);
     let dynamic = sim.state.x.clone();
     let mut reference = sim.scene.build().expect("scene rebuilds");
     let report = reference.solve_static();
@@ -101,4 +116,20 @@ pub fn run_to_rest(mut sim: Simulation, seconds: f64) -> Run {
     run.static_energy = mechanical_energy(&reference.model, &reference.state, g);
     run.settle_error = max_distance(&dynamic, &reference.state.x) / reference.max_displacement();
     run
+}
+
+/// `‖(M g − f(x))_free‖ / ‖(M g)_free‖` at the current state of `sim` (see
+/// [`Run::static_residual`]): zero at an equilibrium under gravity and still supports.
+pub fn static_residual(sim: &Simulation) -> f64 {
+    let n = sim.model.vertex_count();
+    let mut f = vec![nalgebra::Vector3::zeros(); n];
+    sim.model.negated_elastic_force_at(&sim.state.x, &mut f);
+    let mask = sim.imposed.mask();
+    let (mut residual, mut load) = (0.0, 0.0);
+    for i in (0..n).filter(|&i| !mask[i]) {
+        let weight = sim.model.mass[i] * sim.gravity;
+        residual += (weight - f[i]).norm_squared();
+        load += weight.norm_squared();
+    }
+    (residual / load).sqrt()
 }

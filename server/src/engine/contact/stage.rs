@@ -460,15 +460,15 @@ impl ContactStage {
         }
     }
 
-    /// The tissue's force on the instrument: the elastic reactions on what it holds.
+    /// The tissue's force on the instrument: the elastic reactions on what it holds,
+    /// from the elastic model's own force (corotational: the rotations around each
+    /// held vertex extracted afresh; the linear `K u` would count the turn of tissue
+    /// pushed aside as strain, and the calibrated force model would render it).
     fn report_reaction(&self, ins: &mut Instrument, model: &ElasticModel, state: &State) {
         let mut total = Vector3::zeros();
         ins.report.held_reactions.clear();
         for &v in &ins.held {
-            let mut ku = Vector3::zeros();
-            model.stiffness.for_each_in_row(v as usize, |j, kij| {
-                ku += kij * (state.x[j] - model.rest[j])
-            });
+            let ku = model.negated_elastic_force_on(v, &state.x);
             ins.report.held_reactions.push(-ku);
             total -= ku;
         }

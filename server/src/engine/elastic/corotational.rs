@@ -39,7 +39,7 @@
 
 use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
-use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation};
+use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation, polar};
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 
@@ -102,6 +102,18 @@ impl Element {
     fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
         let eps = 0.5 * (a + a.transpose()) - Matrix3::identity();
         Matrix3::identity() * (self.lambda * eps.trace()) + 2.0 * self.mu * eps
+    }
+
+    /// Adds `m g_k` to `out` at each vertex `k` (`m = V R σ` gives the negated elastic
+    /// force), with `g₀ = −(g₁ + g₂ + g₃)` applied as `−(m g₁ + m g₂ + m g₃)`.
+    #[inline]
+    fn scatter(&self, m: &Matrix3<f64>, out: &mut [Vector3<f64>]) {
+        let [g1, g2, g3] = self.g;
+        let (f1, f2, f3) = (m * g1, m * g2, m * g3);
+        out[self.tet[0] as usize] -= f1 + f2 + f3;
+        out[self.tet[1] as usize] += f1;
+        out[self.tet[2] as usize] += f2;
+        out[self.tet[3] as usize] += f3;
     }
 
     /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
@@ -200,6 +212,78 @@ pub(super) fn negated_force(elements: &[Element], x: &[Point3<f64>], out: &mut [
     }
 }
 
+/// The elements around each vertex, in compressed rows: those of vertex `v` are
+/// `element[start[v]..start[v + 1]]`. Built once with the model, for the force on one
+/// vertex ([`negated_force_on`]).
+#[derive(Clone, Debug, Default)]
+pub struct VertexElements {
+    start: Vec<u32>,
+    element: Vec<u32>,
+}
+
+impl VertexElements {
+    pub(super) fn new(vertices: usize, elements: &[Element]) -> Self {
+        let mut start = vec![0u32; vertices + 1];
+        for e in elements {
+            for &v in &e.tet {
+                start[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..vertices {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut element = vec![0u32; start[vertices] as usize];
+        for (k, e) in elements.iter().enumerate() {
+            for &v in &e.tet {
+                element[next[v as usize] as usize] = k as u32;
+                next[v as usize] += 1;
+            }
+        }
+        VertexElements { start, element }
+    }
+
+    /// The elements that contain vertex `v`.
+    pub fn of(&self, v: u32) -> &[u32] {
+        let v = v as usize;
+        match (self.start.get(v), self.start.get(v + 1)) {
+            (Some(&a), Some(&b)) => &self.element[a as usize..b as usize],
+            _ => &[],
+        }
+    }
+
+    pub(super) fn heap_bytes(&self) -> usize {
+        (self.start.capacity() + self.element.capacity()) * 4
+    }
+}
+
+/// `Σ_{e∋v} R_e K_e (R_eᵀ x_e − X_e)` at vertex `v`: the negated elastic force on `v`
+/// alone (N), every rotation around it extracted afresh, as
+/// [`negated_force`] would give at `v`. The reaction of the tissue on a vertex an
+/// instrument holds, at the cost of the few elements around it.
+pub(super) fn negated_force_on(
+    elements: &[Element],
+    around: &VertexElements,
+    v: u32,
+    x: &[Point3<f64>],
+) -> Vector3<f64> {
+    let mut out = Vector3::zeros();
+    for &k in around.of(v) {
+        let e = &elements[k as usize];
+        let f = e.deformation_gradient(x);
+        let mut q = UnitQuaternion::identity();
+        extract_rotation(&f, &mut q, COLD_ITERATIONS);
+        let r = *q.to_rotation_matrix().matrix();
+        let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+        for (&w, g) in e.tet.iter().zip(&e.gradients()) {
+            if w == v {
+                out += rs * g;
+            }
+        }
+    }
+    out
+}
+
 /// The per-tick state of the corotational model: each element's rotation (the warm
 /// start of the next extraction), the rotated stiffness `K̂` and the offset `o`.
 /// Allocated once; [`update`](Self::update) and [`force`](Self::force) allocate
@@ -245,27 +329,31 @@ impl Corotated {
             .for_each(|b| *b = Matrix3::zeros());
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
-            extract_rotation(&f, q, WARM_ITERATIONS);
-            let r = *q.to_rotation_matrix().matrix();
+            let p = polar(&f, q, WARM_ITERATIONS);
+            let r = p.r;
             let g = e.gradients();
-            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+            let rs = e.volume * r * e.stress(&p.a);
             let ro = e.volume * r * e.stress(&r);
+            e.scatter(&rs, out);
+            e.scatter(&ro, &mut self.offset);
+            // K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a · g_b) I); the stored block of a
+            // transposed pair is K̂_abᵀ, the same with λ and μ swapped on the outer
+            // products.
             let gh = g.map(|g| r * g);
-            for (&v, g) in e.tet.iter().zip(&g) {
-                out[v as usize] += rs * g;
-                self.offset[v as usize] += ro * g;
-            }
+            let (vl, vm) = (e.volume * e.lambda, e.volume * e.mu);
             for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
-                let mut block = e.lambda * gh[a] * gh[b].transpose()
-                    + e.mu * gh[b] * gh[a].transpose()
-                    + Matrix3::identity() * (e.mu * g[a].dot(&g[b]));
-                block *= e.volume;
-                let k = (slot & !TRANSPOSED) as usize;
-                if slot & TRANSPOSED != 0 {
-                    self.tangent.block[k] += block.transpose();
+                let outer = gh[a] * gh[b].transpose();
+                let (p, s) = if slot & TRANSPOSED != 0 {
+                    (vm, vl)
                 } else {
-                    self.tangent.block[k] += block;
-                }
+                    (vl, vm)
+                };
+                let mut block = outer * p + outer.transpose() * s;
+                let d = vm * g[a].dot(&g[b]);
+                block.m11 += d;
+                block.m22 += d;
+                block.m33 += d;
+                self.tangent.block[(slot & !TRANSPOSED) as usize] += block;
             }
         }
     }
@@ -277,13 +365,8 @@ impl Corotated {
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
-            extract_rotation(&f, q, WARM_ITERATIONS);
-            let r = *q.to_rotation_matrix().matrix();
-            let rs = e.volume * r * e.stress(&r.tr_mul(&f));
-            let g = e.gradients();
-            for k in 0..4 {
-                out[e.tet[k] as usize] += rs * g[k];
-            }
+            let p = polar(&f, q, WARM_ITERATIONS);
+            e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
         }
     }
 }

@@ -21,7 +21,7 @@ pub mod rotation;
 mod stress;
 
 pub use assemble::{shape_gradients, tet_stiffness};
-pub use corotational::{Corotated, Element};
+pub use corotational::{Corotated, Element, VertexElements};
 pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
 
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -61,6 +61,8 @@ pub struct ElasticModel {
     pub formulation: Formulation,
     /// Per-tetrahedron data of the corotational model (empty for the linear one).
     pub elements: Vec<Element>,
+    /// The corotational elements around each vertex (empty for the linear model).
+    pub vertex_elements: VertexElements,
 }
 
 /// A symmetric matrix of 3×3 blocks on the pattern of the mesh's vertex–edge graph,
@@ -283,7 +285,9 @@ impl ElasticModel {
                 &tet_material,
             ),
         };
+        let vertex_elements = VertexElements::new(n, &elements);
         ElasticModel {
+            vertex_elements,
             rest: mesh.positions.clone(),
             mass,
             stiffness,
@@ -356,6 +360,26 @@ impl ElasticModel {
         }
     }
 
+    /// The negated elastic force on vertex `v` alone at `x`, N: row `v` of
+    /// [`negated_elastic_force_at`](Self::negated_elastic_force_at), `(K (x − X))_v`
+    /// (linear) or `Σ_{e∋v} R_e K_e (R_eᵀ x_e − X_e)` with the rotations around `v`
+    /// extracted afresh (corotational). Its negation is the tissue's force on a vertex
+    /// held in place: what an instrument holding it feels.
+    pub fn negated_elastic_force_on(&self, v: u32, x: &[Point3<f64>]) -> Vector3<f64> {
+        match self.formulation {
+            Formulation::Linear => {
+                let mut ku = Vector3::zeros();
+                self.stiffness.for_each_in_row(v as usize, |j, kij| {
+                    ku += kij * (x[j] - self.rest[j]);
+                });
+                ku
+            }
+            Formulation::Corotational => {
+                corotational::negated_force_on(&self.elements, &self.vertex_elements, v, x)
+            }
+        }
+    }
+
     /// Elastic potential energy `½ uᵀ K u` of the displacement `u`, J (the linear
     /// model's).
     pub fn strain_energy(&self, u: &[Vector3<f64>]) -> f64 {
@@ -400,6 +424,7 @@ impl ElasticModel {
             + self.mass.capacity() * 8
             + self.tet_material.capacity() * 2
             + self.elements.capacity() * std::mem::size_of::<Element>()
+            + self.vertex_elements.heap_bytes()
     }
 }
 

@@ -14,8 +14,9 @@
 //!
 //! Why this extraction and not another:
 //! - it is warm-started from the previous tick's rotation, so once a motion is under
-//!   way one or two iterations (a few dozen flops and one `sin`/`cos`) reach round-off;
-//!   a 3×3 SVD costs several times more for every element of every tick;
+//!   way one or two iterations (a few dozen flops, no `sin`/`cos`, see
+//!   [`polar`]) reach round-off; a 3×3 SVD costs several times more for every
+//!   element of every tick;
 //! - it always returns a proper rotation (`det R = +1`), also for an inverted element
 //!   (`det F < 0`), where it converges to `U diag(1, 1, −1) Vᵀ` (`F = U Σ Vᵀ`): the
 //!   rotation that maximises `tr(Rᵀ F)`, the choice of Irving, Teran and Fedkiw
@@ -30,7 +31,7 @@
 //!   rotation, so it would not give forces that derive from an energy (see
 //!   [`corotational`](super::corotational)).
 
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 /// Stop when the correction angle is below this, rad. The rotation then leaves
 /// `Rᵀ F` symmetric to about this relative accuracy: well under the 1e-9 relative
@@ -52,6 +53,25 @@ const NEWTON_RANGE: f64 = 0.3;
 /// Turns `q` towards the rotation of the polar decomposition of `f`, in at most
 /// `max_iterations` steps, starting from `q` (the warm start). Returns the
 /// iterations taken.
+pub fn extract_rotation(f: &Matrix3<f64>, q: &mut UnitQuaternion<f64>, max_iterations: u32) -> u32 {
+    polar(f, q, max_iterations).iterations
+}
+
+/// What [`polar`] found: the rotation and what the forces need of it.
+#[derive(Clone, Copy, Debug)]
+pub struct Polar {
+    /// The rotation `R` (the matrix of the updated `q`).
+    pub r: Matrix3<f64>,
+    /// `A = Rᵀ F`, whose symmetric part is the stretch `S` once `R` has converged: the
+    /// strain `ε = sym(A) − I` comes without another product.
+    pub a: Matrix3<f64>,
+    /// Steps taken.
+    pub iterations: u32,
+}
+
+/// Turns `q` towards the rotation of the polar decomposition of `f`, in at most
+/// `max_iterations` steps, starting from `q` (the warm start), and returns the
+/// rotation with `Rᵀ F` for it.
 ///
 /// Müller et al.'s step `ω = τ / |tr(Rᵀ F)|` (`τ = Σ_k r_k × f_k`) converges from any
 /// start but only linearly near the answer (the error shrinks by about 1/3 a step,
@@ -59,40 +79,88 @@ const NEWTON_RANGE: f64 = 0.3;
 /// `tr(A) I`). Once its step is below [`NEWTON_RANGE`] and that Jacobian is
 /// positive definite (true near a non-inverted polar rotation, whose pairwise sums
 /// of stretches `s_i + s_j` are its eigenvalues), the exact Newton step
-/// `ω = R (tr(A) I − A)⁻¹ Rᵀ τ` is taken instead: quadratic convergence.
+/// `ω = (tr(A) I − A)⁻¹ τ` (in the element frame) is taken instead: quadratic
+/// convergence.
+///
+/// Cost, which the explicit substep pays for every element: the loop's test comes
+/// before any update, so a warm start that is already exact costs one quaternion to
+/// matrix conversion, one `Rᵀ F` and one 3×3 solve, and `Rᵀ F` is handed back for
+/// the stress. The Newton step is solved by the adjugate (no square root) and turns
+/// `q` by the Cayley rotation `(1, ω/2)` normalised, of angle `2 atan(|ω|/2) =
+/// |ω| − |ω|³/12 + …`: no `sin`/`cos`, and an error of `|ω|³/12` against the
+/// exponential, below the Newton step's own `O(|ω|²)`, so convergence stays
+/// quadratic. Müller's long steps keep the exponential map.
 #[inline]
-pub fn extract_rotation(f: &Matrix3<f64>, q: &mut UnitQuaternion<f64>, max_iterations: u32) -> u32 {
+pub fn polar(f: &Matrix3<f64>, q: &mut UnitQuaternion<f64>, max_iterations: u32) -> Polar {
     // The guard ε keeps the quotient finite for F = 0; it is negligible against
     // |Σ r_k · f_k|, which is about 3 for an element near its rest shape.
     const GUARD: f64 = 1e-9;
+    let mut r = *q.to_rotation_matrix().matrix();
+    let mut a = r.tr_mul(f);
     for k in 0..max_iterations {
-        let r = q.to_rotation_matrix();
-        let r = r.matrix();
-        let a = r.tr_mul(f);
         // τ in the element frame: Σ_k e_k × a_k, the axial vector of A − Aᵀ.
         let torque = Vector3::new(a.m32 - a.m23, a.m13 - a.m31, a.m21 - a.m12);
         let trace = a.trace();
-        let mut omega = torque / (trace.abs() + GUARD);
-        if omega.norm() < NEWTON_RANGE {
-            let sym = 0.5 * (a + a.transpose());
-            let jacobian = Matrix3::identity() * trace - sym;
-            if let Some(chol) = jacobian.cholesky() {
-                omega = chol.solve(&torque);
-            }
-        }
-        let omega = r * omega;
+        let muller = torque / (trace.abs() + GUARD);
+        let newton = if muller.norm_squared() < NEWTON_RANGE * NEWTON_RANGE {
+            newton_step(&a, trace, &torque)
+        } else {
+            None
+        };
+        let omega = newton.unwrap_or(muller);
+        // |R ω| = |ω|: the angle reads the same in either frame.
         let angle = omega.norm();
-        if !angle.is_finite() {
-            // Non-finite input: keep the last good rotation.
-            return k;
+        if !angle.is_finite() || angle < ANGLE_TOLERANCE {
+            // Converged, or non-finite input (keep the last good rotation).
+            return Polar {
+                r,
+                a,
+                iterations: k,
+            };
         }
-        if angle < ANGLE_TOLERANCE {
-            return k;
-        }
-        *q = UnitQuaternion::from_scaled_axis(omega) * *q;
+        // R ← exp([R ω]×) R = R exp([ω]×): the turn is applied on the element side.
+        let turn = match newton {
+            Some(_) => UnitQuaternion::new_normalize(Quaternion::from_parts(1.0, 0.5 * omega)),
+            None => UnitQuaternion::from_scaled_axis(omega),
+        };
+        *q *= turn;
         q.renormalize_fast();
+        r = *q.to_rotation_matrix().matrix();
+        a = r.tr_mul(f);
     }
-    max_iterations
+    Polar {
+        r,
+        a,
+        iterations: max_iterations,
+    }
+}
+
+/// `(tr(A) I − sym(A))⁻¹ τ` when that matrix is positive definite (its leading
+/// minors are positive, Sylvester), by the adjugate; `None` otherwise.
+#[inline]
+fn newton_step(a: &Matrix3<f64>, trace: f64, torque: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let (j00, j11, j22) = (trace - a.m11, trace - a.m22, trace - a.m33);
+    let j01 = -0.5 * (a.m12 + a.m21);
+    let j02 = -0.5 * (a.m13 + a.m31);
+    let j12 = -0.5 * (a.m23 + a.m32);
+    let c00 = j11 * j22 - j12 * j12;
+    let c01 = j02 * j12 - j01 * j22;
+    let c02 = j01 * j12 - j02 * j11;
+    let c11 = j00 * j22 - j02 * j02;
+    let c12 = j01 * j02 - j00 * j12;
+    let c22 = j00 * j11 - j01 * j01;
+    let det = j00 * c00 + j01 * c01 + j02 * c02;
+    if !(j00 > 0.0 && c22 > 0.0 && det > 0.0) {
+        return None;
+    }
+    let t = torque;
+    Some(
+        Vector3::new(
+            c00 * t.x + c01 * t.y + c02 * t.z,
+            c01 * t.x + c11 * t.y + c12 * t.z,
+            c02 * t.x + c12 * t.y + c22 * t.z,
+        ) / det,
+    )
 }
 
 #[cfg(test)]

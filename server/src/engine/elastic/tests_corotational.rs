@@ -131,6 +131,43 @@ fn rotated_tangent_and_offset_give_the_force() {
 }
 
 #[test]
+fn the_force_on_one_vertex_is_its_row_of_the_whole_force() {
+    // What an instrument holding a vertex feels must be the model's own force there:
+    // for the corotational model the turned, wobbled liver's force (with rotations
+    // extracted afresh), not the linear K u, which differs at the level of the force
+    // itself on this turned shape.
+    let mesh = liver_mesh();
+    let q = Rotation3::new(Vector3::new(0.4, 1.1, -0.3));
+    let x: Vec<_> = mesh
+        .positions
+        .iter()
+        .map(|p| q * (p + wobble(p, 0.05)))
+        .collect();
+    let (linear, corot) = models(&mesh, 0.3);
+    for model in [&linear, &corot] {
+        let mut whole = vec![Vector3::zeros(); x.len()];
+        model.negated_elastic_force_at(&x, &mut whole);
+        let scale = max_norm(&whole);
+        for v in 0..x.len() as u32 {
+            let one = model.negated_elastic_force_on(v, &x);
+            assert!(
+                (one - whole[v as usize]).norm() <= 1e-12 * scale,
+                "{:?} vertex {v}: {one} vs {}",
+                model.formulation,
+                whole[v as usize]
+            );
+        }
+    }
+    let (a, b) = (linear_force(&linear, &x), corotational_force(&corot, &x));
+    let gap = a
+        .iter()
+        .zip(&b)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(gap >= 0.1 * max_norm(&b), "gap {gap}");
+}
+
+#[test]
 fn forces_are_the_gradient_of_the_corotated_energy() {
     // f = −∂W/∂x: a central difference of W along a direction d matches −f · d to
     // the O(δ²) truncation of the difference.

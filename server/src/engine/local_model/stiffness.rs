@@ -142,7 +142,9 @@ impl Fit {
     /// exactly: the model reproduces the elastic force at the tick's pose.
     ///
     /// `λ` is the secant stiffness `(R·n) / δ` of the elastic model at this contact
-    /// (the tangent too, the model being linear): push and indentation along the same
+    /// (the tangent too for the linear model; for the corotational one, whose reaction
+    /// the contact stage reports with fresh rotations, the secant of the turned
+    /// tissue): push and indentation along the same
     /// normal, within [`RANGE`] of `geometric`; while `δ < MIN_INDENTATION` the last
     /// fitted `λ` (or `geometric`) is kept. The depth `R / λ` then sets the anchor: it
     /// equals `δ` when the reaction is all push.
