@@ -36,7 +36,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::closest::closest_triangle_axis;
+use super::closest::{closest_point_axis, closest_triangle_axis};
 use super::pose::InstrumentPose;
 use super::push::{ON_AXIS, PUSH_MARGIN};
 use super::scratch::Scratch;
@@ -67,6 +67,17 @@ pub(super) fn push_faces(
             continue;
         }
         let p = tri.map(|v| x[v as usize]);
+        // Most candidates are nowhere near: every point of the triangle is within `ρ`
+        // of its centroid, so one whose centroid is `r + ρ` from the axis is out.
+        let centroid = Point3::from((p[0].coords + p[1].coords + p[2].coords) / 3.0);
+        let rho = p
+            .iter()
+            .map(|q| (q - centroid).norm_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        if closest_point_axis(&centroid, pose, length).distance() >= radius + rho {
+            continue;
+        }
         let c = closest_triangle_axis(&p, pose, length);
         let d = c.distance();
         if d >= radius {
