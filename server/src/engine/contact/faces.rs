@@ -26,10 +26,11 @@
 //! and came in from its handle, outside the body; so the triangle goes to its own
 //! tissue side, along `−n`, far enough that the capsule's part below its plane is
 //! cleared: the axis point in the plane is at `β`, the tip is `β (n·Z)` below it and
-//! the capsule reaches `r` further, so the move is `r' + β max(n·Z, 0)`. A triangle
-//! whose normal faces the tip (`n·Z < 0`: the handle is on its tissue side, a fold
-//! the instrument went through) gets `r'` along `−n`, and the next passes push it on
-//! from wherever the axis then is.
+//! the capsule reaches `r` further, so the move is `r' + β (n·Z)`. A triangle whose
+//! normal faces the tip (`n·Z ≤ 0`) has the handle on its tissue side: the shaft goes
+//! through a second lobe, which no push of one triangle clears (moving it `r'` a
+//! pass sent it 8 cm in 16 passes); it is left as it is, and a pose that enters from
+//! outside, as through a trocar, never has one.
 //!
 //! A move tilts the triangle, and one triangle's move can bring a neighbour in, so
 //! this runs inside the passes of the push-out, which repeat until nothing moves.
