@@ -8,6 +8,61 @@ use nalgebra::{Point3, Unit, Vector3};
 /// How deep a surface vertex or edge may be inside an instrument, m.
 pub const DEPTH_TOLERANCE: f64 = 1e-6;
 
+/// How deep a point inside a surface triangle may be inside an instrument, m (the
+/// issue's bound for any surface point).
+pub const FACE_TOLERANCE: f64 = 1e-4;
+
+/// Spacing of the points sampled on each triangle, m. The sampled depth falls short of
+/// the true one by at most about `h²/(8 d)` where the face passes at `d` from the axis
+/// (the depth is smooth there), 6 µm for `d` ≥ 5 mm; a face the axis goes through is
+/// caught by the winding number of the axis points as well.
+const FACE_SAMPLING: f64 = 0.5e-3;
+
+/// The deepest point of the triangles near an instrument, sampled on a barycentric grid
+/// of spacing at most [`FACE_SAMPLING`], measured by its distance to the axis segment
+/// (`β` clamped to `[0, l]`): `(depth, triangle)`, depth `r − distance` (negative
+/// outside). Triangles whose corners are all supports are skipped.
+pub fn deepest_face_point(
+    sim: &Simulation,
+    pose: &InstrumentPose,
+    radius: f64,
+    length: f64,
+) -> Option<(f64, usize)> {
+    let x = &sim.state.x;
+    let fixed = |v: u32| sim.fixed.binary_search(&v).is_ok();
+    let (a, b) = (pose.tip, pose.point_at(length));
+    let lo = a.inf(&b) - Vector3::repeat(radius);
+    let hi = a.sup(&b) + Vector3::repeat(radius);
+    let z = pose.axis.into_inner();
+    let mut deepest: Option<(f64, usize)> = None;
+    for (t, tri) in sim.mesh.surface.triangles.iter().enumerate() {
+        if tri.iter().all(|&v| fixed(v)) {
+            continue;
+        }
+        let p = tri.map(|v| x[v as usize]);
+        let (tlo, thi) = (p[0].inf(&p[1]).inf(&p[2]), p[0].sup(&p[1]).sup(&p[2]));
+        if (0..3).any(|k| thi[k] < lo[k] || tlo[k] > hi[k]) {
+            continue;
+        }
+        let longest = (0..3)
+            .map(|k| (p[(k + 1) % 3] - p[k]).norm())
+            .fold(0.0, f64::max);
+        let n = ((longest / FACE_SAMPLING).ceil() as usize).max(1);
+        for i in 0..=n {
+            for j in 0..=(n - i) {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                let q = p[0] + (p[1] - p[0]) * u + (p[2] - p[0]) * v;
+                let beta = (q - pose.tip).dot(&z).clamp(0.0, length);
+                let depth = radius - (q - pose.point_at(beta)).norm();
+                if deepest.is_none_or(|(d, _)| depth > d) {
+                    deepest = Some((depth, t));
+                }
+            }
+        }
+    }
+    deepest
+}
+
 /// Generalised winding number of the closed surface around `p` (Van Oosterom and
 /// Strackee's solid angle per triangle, summed over 4π): 1 inside, 0 outside.
 pub fn winding_number(sim: &Simulation, p: &Point3<f64>) -> f64 {
@@ -24,7 +79,8 @@ pub fn winding_number(sim: &Simulation, p: &Point3<f64>) -> f64 {
 }
 
 /// Checks, for every instrument in the body: no free surface vertex and no surface edge
-/// with a free end inside it deeper than [`DEPTH_TOLERANCE`], and its axis (sampled
+/// with a free end inside it deeper than [`DEPTH_TOLERANCE`], no point of a triangle
+/// deeper than [`FACE_TOLERANCE`] ([`deepest_face_point`]), and its axis (sampled
 /// every 2 mm, tip included) outside the liver. Supports never move, so a
 /// vertex or edge that is all support is not the stage's to keep out.
 pub fn check_invariants(sim: &Simulation) -> Result<(), String> {
@@ -54,6 +110,14 @@ pub fn check_invariants(sim: &Simulation) -> Result<(), String> {
                     ins.name
                 ));
             }
+        }
+        if let Some((depth, t)) = deepest_face_point(sim, &pose, ins.radius, len)
+            && depth > FACE_TOLERANCE
+        {
+            return Err(format!(
+                "tick {}: a point of triangle {t} is {depth:.3e} m inside `{}`",
+                sim.tick, ins.name
+            ));
         }
         let samples = (len / 2e-3).ceil() as usize;
         for k in 0..=samples {

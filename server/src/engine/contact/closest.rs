@@ -299,6 +299,91 @@ pub fn closest_point_triangle(x: &Point3<f64>, triangle: &[Point3<f64>; 3]) -> T
         .expect("three edges")
 }
 
+/// The closest points between a surface triangle and the axis segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleAxisClosest {
+    /// The triangle's point in barycentric coordinates.
+    pub barycentric: [f64; 3],
+    /// Position on the axis, `β ∈ [0, l]`.
+    pub beta: f64,
+    /// The triangle's point.
+    pub on_triangle: Point3<f64>,
+    /// The axis' point `P + βZ`.
+    pub on_axis: Point3<f64>,
+}
+
+impl TriangleAxisClosest {
+    /// From the axis to the triangle: the direction to push the triangle.
+    pub fn offset(&self) -> Vector3<f64> {
+        self.on_triangle - self.on_axis
+    }
+
+    /// The distance between the triangle and the axis segment (0 if the axis meets it).
+    pub fn distance(&self) -> f64 {
+        self.offset().norm()
+    }
+}
+
+/// The closest points between a triangle and the axis segment of `pose` of length
+/// `length`: its face interior as well as its edges and corners.
+///
+/// Method, exact for these two convex sets: if the segment meets the triangle
+/// ([`ray_triangle`] from the tip along `Z`, hit at `t ≤ l`), the distance is 0 at the
+/// hit. Otherwise the closest pair can be taken with a point of the triangle's boundary
+/// or an end of the segment: a pair interior to both has its offset ⊥ to the segment
+/// and to the triangle's plane, so the segment is parallel to the plane and sliding
+/// the pair along the segment keeps its length until an end of the segment or an edge
+/// of the triangle is reached. So the answer is the best of the segment's two ends
+/// against the triangle ([`closest_point_triangle`]) and the triangle's three edges
+/// against the segment ([`closest_edge_axis`]).
+pub fn closest_triangle_axis(
+    triangle: &[Point3<f64>; 3],
+    pose: &InstrumentPose,
+    length: f64,
+) -> TriangleAxisClosest {
+    if let Some(hit) = ray_triangle(&pose.tip, &pose.axis, triangle)
+        && hit.t <= length
+    {
+        let on_axis = pose.point_at(hit.t);
+        return TriangleAxisClosest {
+            barycentric: hit.barycentric,
+            beta: hit.t,
+            on_triangle: on_axis,
+            on_axis,
+        };
+    }
+    let mut best: Option<(f64, TriangleAxisClosest)> = None;
+    let mut consider = |c: TriangleAxisClosest| {
+        let d = c.distance();
+        if best.is_none_or(|(b, _)| d < b) {
+            best = Some((d, c));
+        }
+    };
+    for beta in [0.0, length] {
+        let on_axis = pose.point_at(beta);
+        let c = closest_point_triangle(&on_axis, triangle);
+        consider(TriangleAxisClosest {
+            barycentric: c.barycentric,
+            beta,
+            on_triangle: c.point,
+            on_axis,
+        });
+    }
+    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+        let c = closest_edge_axis(&triangle[i], &triangle[j], pose, length);
+        let mut barycentric = [0.0; 3];
+        barycentric[i] = 1.0 - c.alpha;
+        barycentric[j] = c.alpha;
+        consider(TriangleAxisClosest {
+            barycentric,
+            beta: c.beta,
+            on_triangle: c.on_edge,
+            on_axis: c.on_axis,
+        });
+    }
+    best.expect("five candidates").1
+}
+
 /// Below this fraction of `Σ |α_i| |n_i|`, the interpolated normal is taken as
 /// cancelled: the sum carries a rounding error of a few ε times that magnitude, so a
 /// remainder of 1e-9 of it still has a direction good to about 1e-6 rad, and a smaller

@@ -20,7 +20,9 @@
 //!   frame; every triangle that may have met the instrument, at any speed.
 //! - `edges`: colliding edges and confidence intervals (§2.3–2.4).
 //! - `tip`: the triangle under the tip onto the plane at distance `r` (§2.5).
-//! - `push`: edges and vertices out of the instrument (§2.6).
+//! - `push`: edges and vertices out of the instrument (§2.6), with
+//! - `faces`: triangle interiors out of it, the correction shared by the triangle's
+//!   vertices (least-norm barycentric mapping).
 //! - [`instrument`]: an instrument's geometry, poses, held vertices and report.
 //! - `scratch`: the buffers the stage and its steps share, allocated once, and the
 //!   stage's work counters.
@@ -32,14 +34,17 @@
 //! Supports (fixed vertices) never move: an edge or a vertex that is all support is
 //! not kept out of an instrument, and a scene should keep its instruments away from
 //! its supports. An instrument that first appears already inside the tissue (no
-//! previous pose, so no motion to analyse) is pushed out as well as the tip press and
-//! the push-out can; instruments are expected to enter from outside, as through a
-//! trocar.
+//! previous pose, so no motion to analyse) is cleared by the tip press and the
+//! push-out with its face pass: the tissue goes to the side of its surface away from
+//! the handle (see `faces`). Instruments are expected to enter from outside, as
+//! through a trocar: a shaft that passes through a second lobe as well is not cleared
+//! of it.
 
 pub mod broadphase;
 pub mod closest;
 pub mod crossing;
 mod edges;
+mod faces;
 pub mod instrument;
 pub mod pose;
 mod push;

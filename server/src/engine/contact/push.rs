@@ -4,8 +4,17 @@
 //! than `r` goes straight away from its closest axis point to just beyond `r`: at right
 //! angles to `Z` along the shaft, radially from the tip beyond it. An edge closer than
 //! `r` (its closest point inside) is translated along the common perpendicular by the
-//! missing distance. Moving one edge can push a neighbour in, so the passes repeat
-//! until nothing moves (a few passes).
+//! missing distance. Then each candidate triangle whose interior is still inside is
+//! moved out (`faces`). Moving one edge or face can push a neighbour in, so the passes
+//! repeat until nothing moves (a few passes).
+//!
+//! The bound: at most `MAX_PASSES` (16) passes a tick. Every move only takes a point out
+//! to `r (1 + PUSH_MARGIN)`, so a pass that moves something leaves less inside; in
+//! the property tests the passes settle within a few. Should the bound be reached
+//! (neighbours pushing each other in turn around a fold), the tick ends with what the
+//! last pass left: every vertex it moved is held there, and the next tick's passes
+//! start from it; the depth left is at most what the last pass moved, checked by the
+//! invariants after every tick in the tests.
 //!
 //! A point exactly on the axis has no "away": a vertex at the tip goes ahead of it
 //! (`−Z`), one on the shaft goes along its surface normal taken ⊥ `Z`, and an edge
@@ -15,6 +24,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::closest::{closest_edge_axis, closest_point_axis};
+use super::faces::push_faces;
 use super::pose::{InstrumentPose, perpendicular};
 use super::scratch::Scratch;
 use crate::engine::mesh::Surface;
@@ -25,13 +35,13 @@ const MAX_PASSES: usize = 16;
 /// and it lets the passes settle from outside — pushing exactly to `r` leaves
 /// neighbouring edges and vertices nudging each other back in by rounding and by
 /// each other's moves.
-const PUSH_MARGIN: f64 = 1e-4;
+pub(super) const PUSH_MARGIN: f64 = 1e-4;
 /// A point nearer the axis than this fraction of `r` has no reliable direction away
 /// from it and takes the fallback direction.
-const ON_AXIS: f64 = 1e-9;
+pub(super) const ON_AXIS: f64 = 1e-9;
 
-/// Pushes the candidate vertices and edges out of the instrument. Returns whether
-/// anything moved.
+/// Pushes the candidate vertices, edges and triangles out of the instrument. Returns
+/// whether anything moved.
 pub(super) fn push_out(
     s: &mut Scratch,
     surface: &Surface,
@@ -108,6 +118,7 @@ pub(super) fn push_out(
             }
             moved = true;
         }
+        moved |= push_faces(s, surface, pose, radius, length, x);
         any |= moved;
         if !moved {
             break;

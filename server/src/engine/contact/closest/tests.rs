@@ -125,6 +125,49 @@ proptest! {
         prop_assert!(d <= best + 1e-12 && d >= best - 1e-2, "{d} vs sampled {best}");
     }
 
+    /// The segment–triangle distance against an independent method: the distance from
+    /// the axis point at `β` to the triangle is convex in `β`, minimised by ternary
+    /// search, each point's distance taken by sampling the triangle finely.
+    #[test]
+    fn triangle_axis_matches_ternary_search(pose in arb_pose(), t in prop::array::uniform3(arb_point(0.3)), l in 0.0..0.5f64) {
+        let c = closest_triangle_axis(&t, &pose, l);
+        let sum: f64 = c.barycentric.iter().sum();
+        prop_assert!((sum - 1.0).abs() < 1e-9 && c.barycentric.iter().all(|w| (-1e-9..=1.0 + 1e-9).contains(w)));
+        let from_bary = Point3::from(t[0].coords * c.barycentric[0] + t[1].coords * c.barycentric[1] + t[2].coords * c.barycentric[2]);
+        prop_assert!((from_bary - c.on_triangle).norm() < 1e-9);
+        prop_assert!((pose.point_at(c.beta) - c.on_axis).norm() < 1e-12 && (0.0..=l).contains(&c.beta));
+        let to_triangle = |q: Point3<f64>| {
+            // The closest point of the plane, then the edges if it falls outside.
+            let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+            let mut best = f64::INFINITY;
+            if n.norm() > 1e-12 {
+                let n = n.normalize();
+                let f = q - n * (q - t[0]).dot(&n);
+                let inside = (0..3).all(|i| (t[(i + 1) % 3] - t[i]).cross(&(f - t[i])).dot(&n) >= 0.0);
+                if inside {
+                    best = (q - f).norm();
+                }
+            }
+            for i in 0..3 {
+                let (a, e) = (t[i], t[(i + 1) % 3] - t[i]);
+                let s = if e.norm_squared() > 0.0 { ((q - a).dot(&e) / e.norm_squared()).clamp(0.0, 1.0) } else { 0.0 };
+                best = best.min((a + e * s - q).norm());
+            }
+            best
+        };
+        let (mut lo, mut hi) = (0.0, l);
+        for _ in 0..200 {
+            let (m1, m2) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+            if to_triangle(pose.point_at(m1)) <= to_triangle(pose.point_at(m2)) {
+                hi = m2;
+            } else {
+                lo = m1;
+            }
+        }
+        let expected = to_triangle(pose.point_at(0.5 * (lo + hi)));
+        prop_assert!((c.distance() - expected).abs() < 1e-9, "{} vs {expected}", c.distance());
+    }
+
     /// Rays through random points of the fan's shared edges, and through its
     /// centre, from random origins above: at least one triangle is hit, and every
     /// hit is consistent (point from t = point from barycentrics).
