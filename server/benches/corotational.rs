@@ -56,16 +56,7 @@ fn main() {
         "| mesh | tetrahedra | model | preconditioner | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | max displacement (mm) | instrument force (N) | relative error vs static |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
-    let wanted: Vec<&'static str> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with('-'))
-        .map(|a| &*a.leak())
-        .collect();
-    let labels = if wanted.is_empty() {
-        vec!["sofa-liver", "liver-20k", "liver-80k"]
-    } else {
-        wanted
-    };
+    let labels = requested_labels(&["sofa-liver", "liver-20k", "liver-80k"]);
     for case in meshes(&labels) {
         let runs = [Formulation::Linear, Formulation::Corotational]
             .into_iter()

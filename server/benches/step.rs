@@ -43,22 +43,13 @@ use laparo_server::engine::integrate::{IntegratorKind, PreconditionerKind};
 use laparo_server::engine::simulation::Simulation;
 
 fn main() {
-    let wanted: Vec<&'static str> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with('-'))
-        .map(|a| &*a.leak())
-        .collect();
-    let labels = if wanted.is_empty() {
-        vec![
-            "sofa-liver",
-            "liver-5k",
-            "liver-20k",
-            "liver-80k",
-            "liver-300k",
-        ]
-    } else {
-        wanted
-    };
+    let labels = requested_labels(&[
+        "sofa-liver",
+        "liver-5k",
+        "liver-20k",
+        "liver-80k",
+        "liver-300k",
+    ]);
     println!(
         "| mesh | vertices | tets | model | integrator | preconditioner | median tick, transient (ms) | ticks/s | substeps/tick | CG its/tick | achieved GB/s | median tick at rest (ms) | ticks/s at rest | memory (MB) | multigrid setup (s) | multigrid levels (unknowns) | ticks timed | stages, transient: carry / elastic / resolve / local models (ms) |"
     );

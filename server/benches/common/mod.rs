@@ -29,6 +29,21 @@ pub fn shared_mesh_dir() -> PathBuf {
         })
 }
 
+/// The mesh labels named on the command line (arguments not starting with `-`), or
+/// `default` when none is.
+pub fn requested_labels(default: &[&'static str]) -> Vec<&'static str> {
+    let wanted: Vec<&'static str> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .map(|a| &*a.leak())
+        .collect();
+    if wanted.is_empty() {
+        default.to_vec()
+    } else {
+        wanted
+    }
+}
+
 /// The meshes named, in order; those not found are reported and skipped.
 pub fn meshes(labels: &[&'static str]) -> Vec<MeshCase> {
     let mut out = Vec::new();
