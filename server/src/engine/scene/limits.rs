@@ -62,14 +62,22 @@ pub const MAX_FRICTION: f64 = 10.0;
 /// Most work one tick may do, in vertex-iterations: explicit substeps, or
 /// conjugate-gradient iterations at the scene's cap, times the mesh's vertices.
 ///
-/// A substep or a CG iteration costs one stiffness product and a few vector updates,
-/// about 60 ns per vertex measured on the project's 2-core machine (liver-300k,
-/// 60 307 vertices: 3.5 ms an explicit substep, 3.7 ms a CG iteration). So a tick at
-/// the bound takes at most about 6 s whatever the mesh; the scenes in use are far
-/// below (the default scene's worst case is 181 vertices × 1000 iterations, 1.8·10⁵;
-/// liver-300k at 1000 CG iterations is 6·10⁷; liver-5k explicit at 10 MPa and 20 Hz is
-/// 4.5·10⁷). A scene over the bound would leave its session unable to keep time for
-/// minutes or, with a vanishing stable step, for ever.
+/// The unit is one stiffness product's work on one vertex. A linear explicit substep
+/// or a block-Jacobi CG iteration costs about one product and a few vector updates:
+/// about 60 ns per vertex on the project's 2-core machine (liver-300k, 60 307
+/// vertices: 3.5 ms an explicit substep, 3.7 ms a CG iteration), so such a tick at the
+/// bound takes at most about 6 s whatever the mesh. Two kinds of step cost more per
+/// unit, and the bound counts them as units all the same, so that every scene in the
+/// stability grid stays admissible: a corotational explicit substep re-extracts every
+/// element's rotation (liver-300k: 81 ms, about 1.3 µs per vertex, 22 products), and a
+/// multigrid-preconditioned CG iteration runs a V-cycle (liver-300k: about 30 ms, 8
+/// products). At the bound, ticks of those kinds take up to about 130 s and 50 s. The
+/// integrator stops between substeps or iterations when its session closes, so even
+/// those never hold up a shutdown. The scenes in use are far below (the default
+/// scene's worst case is 181 vertices × 1000 iterations, 1.8·10⁵; liver-300k at 1000
+/// CG iterations is 6·10⁷; liver-5k explicit at 10 MPa and 20 Hz is 4.5·10⁷). A scene
+/// over the bound would leave its session unable to keep time for minutes or, with a
+/// vanishing stable step, for ever.
 pub const MAX_TICK_WORK: f64 = 1e8;
 
 /// The largest CG iteration cap a mesh of `vertices` vertices may have: the tick-work
