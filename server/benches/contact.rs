@@ -28,6 +28,10 @@
 //! edges and candidate triangles per tick are medians of the per-tick deltas of the
 //! stage's counters.
 //!
+//! `LAPARO_CONTACT_SETTLE=1` runs every case with the scene's `contact.settle` on (the
+//! free tissue around the stage's jumps settled with them), to compare with the
+//! default back to back.
+//!
 //! Table 2, both instruments tip-first (axis +z) at x = −0.02 and +0.02: the whole
 //! replayed tick, its contact part, share = median contact / median whole tick, and
 //! the most vertices the two hold together at any timed tick.
@@ -216,6 +220,7 @@ fn press(sim: &mut Simulation, presses: &mut [Press], label: &str, run: &mut Run
 fn settled(file: &str) -> Simulation {
     let mut scene = Scene::default_scene();
     scene.mesh.file = file.to_string();
+    scene.contact.settle = std::env::var_os("LAPARO_CONTACT_SETTLE").is_some_and(|v| v == "1");
     let mut sim = build(&scene);
     for _ in 0..60 {
         sim.tick();

@@ -96,13 +96,17 @@ fn ticks_allocate_nothing() {
 #[test]
 fn contact_ticks_allocate_nothing() {
     // Both instruments press the front of the liver, one with its tip and one with its
-    // shaft, turning as they go (so the stage takes several sub-moves a tick).
+    // shaft, turning as they go (so the stage takes several sub-moves a tick); with
+    // and without the settling of the tissue around the contact's jumps.
     for model in [Formulation::Linear, Formulation::Corotational] {
         for preconditioner in [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg] {
-            let mut scene = Scene::default_scene();
-            scene.material.model = model;
-            scene.mechanics.preconditioner = preconditioner;
-            contact_ticks_allocate_nothing_with(scene.build().unwrap());
+            for settle in [false, true] {
+                let mut scene = Scene::default_scene();
+                scene.material.model = model;
+                scene.mechanics.preconditioner = preconditioner;
+                scene.contact.settle = settle;
+                contact_ticks_allocate_nothing_with(scene.build().unwrap());
+            }
         }
     }
 }

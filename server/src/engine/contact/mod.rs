@@ -24,6 +24,8 @@
 //! - `faces`: triangle interiors out of it, the correction shared by the triangle's
 //!   vertices (least-norm barycentric mapping).
 //! - [`instrument`]: an instrument's geometry, poses, held vertices and report.
+//! - `settle`: the free tissue around what the contact steps jumped, corrected
+//!   statically with it, so that a first contact does not spike.
 //! - `scratch`: the buffers the stage and its steps share, allocated once, and the
 //!   stage's work counters.
 //! - Pure geometry, plain data in and out, no allocation:
@@ -49,6 +51,7 @@ pub mod instrument;
 pub mod pose;
 mod push;
 mod scratch;
+mod settle;
 pub mod stage;
 mod tip;
 

@@ -8,8 +8,12 @@
 //! - the integrator advances the liver with those vertices imposed (free motion);
 //! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of
 //!   §2.3–2.6 on the surface seen from the instrument, then the hold/release decision,
-//!   then one more push-out pass for every instrument so that a vertex pushed by one
-//!   is not left inside another.
+//!   then, when the scene asks for it (`contact.settle`), the free tissue around the
+//!   vertices the steps jumped is settled with them (`settle`: without it the
+//!   first-contact tick's reaction is that of one vertex displaced against fixed
+//!   neighbours, up to 49× the steady force), then one more
+//!   push-out pass for every instrument so that a vertex pushed by one, or moved by
+//!   the settling, is not left inside another.
 //!
 //! Holding and release. A vertex the stage moved is held: imposed on the elastic model
 //! at that position, so the deformation spreads into the liver. A held vertex the stage
@@ -42,8 +46,9 @@ use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
 use super::scratch::{ContactStats, Scratch};
+use super::settle::Settle;
 use super::tip::{nearest_point, press_tip};
-use crate::engine::elastic::ElasticModel;
+use crate::engine::elastic::{BlockMatrix, ElasticModel};
 use crate::engine::integrate::{Imposed, State};
 use crate::engine::mesh::Surface;
 
@@ -67,6 +72,10 @@ pub struct ContactStage {
     /// carried: part of where a held vertex starts the contact steps, so that a slip
     /// stays slipped instead of being put back at the tick's start.
     slid: Vec<Vector3<f64>>,
+    /// The vertices the stage jumped this tick, for the settling.
+    jumped: Vec<u32>,
+    /// The settling's buffers, when the scene asks for it (`contact.settle`).
+    settle: Option<Settle>,
     s: Scratch,
 }
 
@@ -120,8 +129,19 @@ impl ContactStage {
             holders: vec![0; n],
             slide: vec![Vector3::zeros(); n],
             slid: vec![Vector3::zeros(); n],
+            jumped: Vec::new(),
+            settle: None,
             s: Scratch::new(surface, rest, fixed),
         }
+    }
+
+    /// The stage with the settling of the tissue around its jumps on or off (off when
+    /// built).
+    pub fn with_settling(mut self, on: bool) -> Self {
+        let n = self.holders.len();
+        self.settle = on.then(|| Settle::new(n));
+        self.jumped = Vec::with_capacity(if on { n } else { 0 });
+        self
     }
 
     /// Work counters since the stage was built.
@@ -168,12 +188,16 @@ impl ContactStage {
     }
 
     /// After the elastic step: the contact algorithm for every instrument, then holds
-    /// and releases, reactions and velocities. `dt` is the tick, s.
+    /// and releases, reactions and velocities. `tangent` is the stiffness the elastic
+    /// step used (the corotational `K̂` of the tick, or the linear `K`), for the
+    /// settling; `dt` is the tick, s.
+    #[allow(clippy::too_many_arguments)]
     pub fn resolve_contact(
         &mut self,
         instruments: &mut [Instrument],
         surface: &Surface,
         model: &ElasticModel,
+        tangent: &BlockMatrix,
         state: &mut State,
         imposed: &mut Imposed,
         dt: f64,
@@ -246,11 +270,12 @@ impl ContactStage {
             self.hold_and_release(k, ins, surface, model, state, imposed);
             self.collect_shaft_edges(ins, surface, state);
         }
+        let settled = self.settle_jumps(instruments, surface, tangent, state, imposed);
         // One more pass for every instrument, tip and push-out, so that what one
         // instrument moved is not left inside another or across its axis (a large
         // triangle swung back over a pressed tip has no vertex inside the instrument;
-        // only the tip press sees it).
-        if instruments.len() > 1 {
+        // only the tip press sees it), nor what the settling moved inside any.
+        if instruments.len() > 1 || settled {
             for _ in 0..FINAL_ROUNDS {
                 let mut moved = false;
                 for (k, ins) in instruments.iter_mut().enumerate() {
@@ -299,6 +324,48 @@ impl ContactStage {
             }
             ins.previous = ins.current;
         }
+    }
+
+    /// Settles the free tissue around the held vertices the contact steps jumped this
+    /// tick (see `settle`), when the largest jump exceeds [`SETTLE_JUMP`] of the
+    /// smallest radius and the scene asks for it. Returns whether it did.
+    fn settle_jumps(
+        &mut self,
+        instruments: &[Instrument],
+        surface: &Surface,
+        tangent: &BlockMatrix,
+        state: &mut State,
+        imposed: &Imposed,
+    ) -> bool {
+        let radius = instruments
+            .iter()
+            .filter(|i| i.current.is_some())
+            .map(|i| i.radius)
+            .fold(f64::INFINITY, f64::min);
+        let Some(settle) = &mut self.settle else {
+            return false;
+        };
+        self.jumped.clear();
+        let mut largest: f64 = 0.0;
+        for &v in &surface.vertices {
+            let vi = v as usize;
+            if self.holders[vi] != 0 && !self.s.fixed[vi] {
+                let d = state.x[vi] - self.end[vi];
+                if d != Vector3::zeros() {
+                    largest = largest.max(d.norm());
+                    settle.jump[vi] = d;
+                    self.jumped.push(v);
+                }
+            }
+        }
+        if largest <= SETTLE_JUMP * radius {
+            for &v in &self.jumped {
+                settle.jump[v as usize] = Vector3::zeros();
+            }
+            return false;
+        }
+        settle.settle(tangent, imposed.mask(), &self.jumped, &mut state.x);
+        true
     }
 
     /// Candidate triangles, edges and vertices for instrument `k`. With `refit`, the
@@ -499,6 +566,10 @@ impl ContactStage {
         }
     }
 }
+
+/// The largest jump of a held vertex, as a fraction of the radius, below which the
+/// tissue is not settled around the jumps.
+const SETTLE_JUMP: f64 = 1e-3;
 
 /// The pull-away a held vertex withstands, as a fraction of the mean force on its
 /// instrument's held vertices. Without it, vertices on the flanks of a shaft pushed

@@ -35,7 +35,7 @@ use std::sync::atomic::AtomicBool;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::elastic::{Corotated, ElasticModel};
+use super::elastic::{BlockMatrix, Corotated, ElasticModel};
 
 /// The deformable body's state.
 #[derive(Clone, Debug)]
@@ -195,6 +195,15 @@ impl Integrator {
                 model.stiffness.mul(&self.u, &mut self.f);
             }
         }
+    }
+
+    /// The stiffness the last step moved the liver with: the corotational tangent
+    /// `K̂ = Σ_e R_e K_e R_eᵀ` with the tick's rotations, or the model's linear `K`.
+    /// What a correction made after the step must use to stay consistent with it.
+    pub fn tangent<'a>(&'a self, model: &'a ElasticModel) -> &'a BlockMatrix {
+        self.corotated
+            .as_ref()
+            .map_or(&model.stiffness, |c| &c.tangent)
     }
 
     /// The rotation of element `e` as the last step left it (identity for a linear

@@ -32,6 +32,8 @@ pub struct Scene {
     #[serde(default)]
     pub instruments: Vec<InstrumentSpec>,
     #[serde(default)]
+    pub contact: ContactSpec,
+    #[serde(default)]
     pub force_model: ForceModelSpec,
     #[serde(default)]
     pub recording: RecordingSpec,
@@ -193,6 +195,20 @@ pub struct InstrumentSpec {
 /// the tissue stick and drag along with a sliding instrument.
 fn default_friction() -> f64 {
     1.0
+}
+
+/// The contact stage.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Settle the free tissue around the vertices the contact steps jump, so that the
+    /// first-contact tick's force is that of the tissue, not of one vertex pushed
+    /// against fixed neighbours (`engine/contact/settle.rs`). Off by default: with it
+    /// a hand keeps hold of the tissue it touches, and the calibrated force model's
+    /// rendering of that tissue's drag, a force sampled at the mechanics rate, is not
+    /// passive at 60 Hz (see ARCHITECTURE.md).
+    #[serde(default)]
+    pub settle: bool,
 }
 
 /// How reaction forces are computed.

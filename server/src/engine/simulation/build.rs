@@ -53,8 +53,10 @@ impl Scene {
             .map(|spec| instruments::instrument(spec, mesh.vertex_count()))
             .collect();
         let pushes = instruments.iter().any(|i| i.tip_contact || i.shaft_contact);
-        let contact = pushes
-            .then(|| ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len()));
+        let contact = pushes.then(|| {
+            ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len())
+                .with_settling(self.contact.settle)
+        });
         let forces = pushes
             .then(|| LocalModelStage::new(self.force_model.kind, &mesh, &model, &instruments));
         Ok(Simulation {

@@ -69,13 +69,15 @@ impl Simulation {
     }
 
     /// Stage 3 (paper §2.3–2.6): colliding edges, confidence intervals, the tip press
-    /// and the push-out for every instrument, then holds and releases.
+    /// and the push-out for every instrument, then holds and releases; the settling
+    /// around the jumps uses the stiffness the elastic step just used.
     fn resolve_contact(&mut self) {
         if let Some(contact) = &mut self.contact {
             contact.resolve_contact(
                 &mut self.instruments,
                 &self.mesh.surface,
                 &self.model,
+                self.integrator.tangent(&self.model),
                 &mut self.state,
                 &mut self.imposed,
                 self.dt,

@@ -176,3 +176,18 @@ fn the_preconditioner_is_auto_unless_the_scene_names_one() {
     );
     assert!(msg.contains("block-jacobi") && msg.contains("amg"), "{msg}");
 }
+
+#[test]
+fn the_contact_is_not_settled_unless_the_scene_asks() {
+    assert!(!parse(MINIMAL).unwrap().contact.settle);
+    let scene = parse(&format!("{MINIMAL}\n[contact]\nsettle = true\n"));
+    assert!(scene.unwrap().contact.settle);
+    expect_path(
+        parse(&format!("{MINIMAL}\n[contact]\nsettle = 1\n")),
+        "contact.settle",
+    );
+    expect_path(
+        parse(&format!("{MINIMAL}\n[contact]\nsettling = true\n")),
+        "contact.settling",
+    );
+}
