@@ -44,7 +44,9 @@ use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 
 /// The vertex pairs `(a, b)` of a tetrahedron whose blocks are stored: the four
-/// diagonal ones, then the six edges.
+/// diagonal ones, then the six edges, each with `a ≤ b`. An element's vertices are
+/// kept in ascending order, so the block of `(tet[a], tet[b])` is an upper stored
+/// block of [`BlockMatrix`] and receives `K̂_ab` itself, never its transpose.
 const PAIRS: [(usize, usize); 10] = [
     (0, 0),
     (1, 1),
@@ -58,22 +60,22 @@ const PAIRS: [(usize, usize); 10] = [
     (2, 3),
 ];
 
-/// Flag in [`Element::slot`]: the stored block is `(tet[b], tet[a])`, so it receives
-/// `K̂_abᵀ`.
-const TRANSPOSED: u32 = 1 << 31;
-
 /// What the corotational model keeps of one tetrahedron (152 bytes).
 #[derive(Clone, Debug)]
 pub struct Element {
+    /// The vertices, in ascending order (not necessarily the mesh's order: the
+    /// gradients follow them, and nothing here depends on orientation).
     pub tet: [u32; 4],
-    /// Rest gradients `g₁, g₂, g₃` (1/m); `g₀ = −(g₁ + g₂ + g₃)`.
+    /// Rest gradients `g₁, g₂, g₃` (1/m) of the shape functions of `tet[1..]`;
+    /// `g₀ = −(g₁ + g₂ + g₃)`.
     pub g: [Vector3<f64>; 3],
     /// Rest volume `V`, m³.
     pub volume: f64,
     /// Lamé coefficients `λ`, `μ`, Pa.
     pub lambda: f64,
     pub mu: f64,
-    /// Index in [`BlockMatrix::block`] of each pair of [`PAIRS`], with [`TRANSPOSED`].
+    /// Index in [`BlockMatrix::block`] of the block `(tet[a], tet[b])` of each pair
+    /// `(a, b)` of [`PAIRS`].
     pub slot: [u32; 10],
 }
 
@@ -122,9 +124,47 @@ impl Element {
         let a = r.tr_mul(f);
         0.5 * (a + a.transpose()) - Matrix3::identity()
     }
+
+    /// Adds this element's share, with rotation `r` and `a = Rᵀ F`, to the negated
+    /// force `out` (`V R σ(A) g_k` at vertex `k`), the offset (`V R σ(R) g_k`) and the
+    /// stored blocks of `K̂`:
+    ///
+    /// `K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (ĝ_a · ĝ_b) I)`,  `ĝ_k = R g_k`
+    ///
+    /// (`ĝ_a · ĝ_b = g_a · g_b`: a rotation keeps dot products). Written as
+    /// `(Vλ ĝ_a) ĝ_bᵀ + ĝ_b (Vμ ĝ_a)ᵀ` with the scaled gradients formed once per
+    /// vertex, a block costs two products and two sums per entry.
+    #[inline]
+    fn add_rotated(
+        &self,
+        r: &Matrix3<f64>,
+        a: &Matrix3<f64>,
+        out: &mut [Vector3<f64>],
+        offset: &mut [Vector3<f64>],
+        blocks: &mut [Matrix3<f64>],
+    ) {
+        let v = self.volume;
+        self.scatter(&(v * r * self.stress(a)), out);
+        self.scatter(&(v * r * self.stress(r)), offset);
+        let [g1, g2, g3] = self.g;
+        let (h1, h2, h3) = (r * g1, r * g2, r * g3);
+        let h = [-(h1 + h2 + h3), h1, h2, h3];
+        let (vl, vm) = (v * self.lambda, v * self.mu);
+        let lh = h.map(|h| vl * h);
+        let mh = h.map(|h| vm * h);
+        for (&(a, b), &slot) in PAIRS.iter().zip(&self.slot) {
+            let d = mh[a].dot(&h[b]);
+            let mut block = lh[a] * h[b].transpose() + h[b] * mh[a].transpose();
+            block.m11 += d;
+            block.m22 += d;
+            block.m33 += d;
+            blocks[slot as usize] += block;
+        }
+    }
 }
 
-/// The elements of `model`'s mesh, for the corotational model.
+/// The elements of `model`'s mesh, for the corotational model, each with its
+/// vertices sorted (see [`PAIRS`]).
 pub(super) fn elements(
     positions: &[Point3<f64>],
     tets: &[[u32; 4]],
@@ -134,15 +174,18 @@ pub(super) fn elements(
 ) -> Vec<Element> {
     tets.iter()
         .zip(tet_material)
-        .map(|(&tet, &m)| {
-            let (g, volume) = super::shape_gradients(positions, tet);
+        .map(|(&mesh_tet, &m)| {
+            let (mesh_g, volume) = super::shape_gradients(positions, mesh_tet);
+            let mut order = [0, 1, 2, 3];
+            order.sort_unstable_by_key(|&k| mesh_tet[k]);
+            let tet = order.map(|k| mesh_tet[k]);
+            let g = order.map(|k| mesh_g[k]);
             let (lambda, mu) = materials[m as usize].lame();
             let slot = PAIRS.map(|(a, b)| {
-                let (i, j) = (tet[a], tet[b]);
-                let k = stiffness
-                    .find_upper(i.min(j), i.max(j))
-                    .expect("every pair of a tetrahedron's vertices is an edge of the mesh");
-                k as u32 | if i > j { TRANSPOSED } else { 0 }
+                stiffness
+                    .find_upper(tet[a], tet[b])
+                    .expect("every pair of a tetrahedron's vertices is an edge of the mesh")
+                    as u32
             });
             Element {
                 tet,
@@ -330,31 +373,7 @@ impl Corotated {
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
             let p = polar(&f, q, WARM_ITERATIONS);
-            let r = p.r;
-            let g = e.gradients();
-            let rs = e.volume * r * e.stress(&p.a);
-            let ro = e.volume * r * e.stress(&r);
-            e.scatter(&rs, out);
-            e.scatter(&ro, &mut self.offset);
-            // K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a · g_b) I); the stored block of a
-            // transposed pair is K̂_abᵀ, the same with λ and μ swapped on the outer
-            // products.
-            let gh = g.map(|g| r * g);
-            let (vl, vm) = (e.volume * e.lambda, e.volume * e.mu);
-            for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
-                let outer = gh[a] * gh[b].transpose();
-                let (p, s) = if slot & TRANSPOSED != 0 {
-                    (vm, vl)
-                } else {
-                    (vl, vm)
-                };
-                let mut block = outer * p + outer.transpose() * s;
-                let d = vm * g[a].dot(&g[b]);
-                block.m11 += d;
-                block.m22 += d;
-                block.m33 += d;
-                self.tangent.block[(slot & !TRANSPOSED) as usize] += block;
-            }
+            e.add_rotated(&p.r, &p.a, out, &mut self.offset, &mut self.tangent.block);
         }
     }
 
