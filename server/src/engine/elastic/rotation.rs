@@ -182,7 +182,8 @@ fn cayley(omega: &Vector3<f64>, p: &Quaternion<f64>) -> (Matrix3<f64>, Quaternio
     let w = 0.5 * omega;
     let t = w.norm_squared();
     let s = if t < SERIES {
-        2.0 * (1.0 - t * (1.0 - t * (1.0 - t)))
+        // 1 − t + t² − t³ = (1 − t)(1 + t²): two short chains instead of one long.
+        2.0 * (1.0 - t) * (1.0 + t * t)
     } else {
         2.0 / (1.0 + t)
     };
@@ -221,12 +222,14 @@ fn newton_step(a: &Matrix3<f64>, trace: f64, torque: &Vector3<f64>) -> Option<Ve
         return None;
     }
     let t = torque;
+    // The reciprocal is formed beside the adjugate's product, not after it.
+    let inverse = 1.0 / det;
     Some(
         Vector3::new(
             c00 * t.x + c01 * t.y + c02 * t.z,
             c01 * t.x + c11 * t.y + c12 * t.z,
             c02 * t.x + c12 * t.y + c22 * t.z,
-        ) / det,
+        ) * inverse,
     )
 }
 
