@@ -115,8 +115,8 @@ fn rotated_tangent_and_offset_give_the_force() {
             );
         }
     }
-    for i in 0..n {
-        assert!((c.row(i, &x) - force[i]).norm() <= 1e-11 * scale, "row {i}");
+    for (i, f) in force.iter().enumerate() {
+        assert!((c.row(i, &x) - f).norm() <= 1e-11 * scale, "row {i}");
     }
     let mut expected = BlockMatrix::with_pattern(n, &mesh.edges);
     for (e, &t) in mesh.tets.iter().enumerate() {
