@@ -34,8 +34,11 @@
 //! stress of the rest shape turned by `R`). [`Corotated::update`] reassembles `K̂`
 //! into a preallocated [`BlockMatrix`] of the mesh's pattern, so the implicit and
 //! static solvers keep multiplying a block matrix, and every other consumer of `K u`
-//! reads `K̂ u + o` instead. At small displacements `R → I` and `K̂ u + o → K u`: the
-//! linear model is the corotational one linearised at rest.
+//! reads `K̂ u + o` instead. `o` is not assembled: the update keeps the force
+//! `f₀ = K̂ u₀ + o` at its positions `x₀`, so `K̂ u + o = f₀ + K̂ (x − x₀)`, a row
+//! of which is an imposed vertex's reaction, and the static solve, which needs all
+//! of `o`, takes it as `f₀ − K̂ u₀`. At small displacements `R → I` and
+//! `K̂ u + o → K u`: the linear model is the corotational one linearised at rest.
 
 use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
@@ -44,7 +47,9 @@ use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 
 /// The vertex pairs `(a, b)` of a tetrahedron whose blocks are stored: the four
-/// diagonal ones, then the six edges.
+/// diagonal ones, then the six edges, each with `a ≤ b`. An element's vertices are
+/// kept in ascending order, so the block of `(tet[a], tet[b])` is an upper stored
+/// block of [`BlockMatrix`] and receives `K̂_ab` itself, never its transpose.
 const PAIRS: [(usize, usize); 10] = [
     (0, 0),
     (1, 1),
@@ -58,22 +63,22 @@ const PAIRS: [(usize, usize); 10] = [
     (2, 3),
 ];
 
-/// Flag in [`Element::slot`]: the stored block is `(tet[b], tet[a])`, so it receives
-/// `K̂_abᵀ`.
-const TRANSPOSED: u32 = 1 << 31;
-
 /// What the corotational model keeps of one tetrahedron (152 bytes).
 #[derive(Clone, Debug)]
 pub struct Element {
+    /// The vertices, in ascending order (not necessarily the mesh's order: the
+    /// gradients follow them, and nothing here depends on orientation).
     pub tet: [u32; 4],
-    /// Rest gradients `g₁, g₂, g₃` (1/m); `g₀ = −(g₁ + g₂ + g₃)`.
+    /// Rest gradients `g₁, g₂, g₃` (1/m) of the shape functions of `tet[1..]`;
+    /// `g₀ = −(g₁ + g₂ + g₃)`.
     pub g: [Vector3<f64>; 3],
     /// Rest volume `V`, m³.
     pub volume: f64,
     /// Lamé coefficients `λ`, `μ`, Pa.
     pub lambda: f64,
     pub mu: f64,
-    /// Index in [`BlockMatrix::block`] of each pair of [`PAIRS`], with [`TRANSPOSED`].
+    /// Index in [`BlockMatrix::block`] of the block `(tet[a], tet[b])` of each pair
+    /// `(a, b)` of [`PAIRS`].
     pub slot: [u32; 10],
 }
 
@@ -99,7 +104,7 @@ impl Element {
 
     /// Small-strain stress `σ = λ tr(ε) I + 2μ ε` of `ε = sym(a) − I`, Pa.
     #[inline]
-    fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
+    pub(super) fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
         let eps = 0.5 * (a + a.transpose()) - Matrix3::identity();
         Matrix3::identity() * (self.lambda * eps.trace()) + 2.0 * self.mu * eps
     }
@@ -122,9 +127,44 @@ impl Element {
         let a = r.tr_mul(f);
         0.5 * (a + a.transpose()) - Matrix3::identity()
     }
+
+    /// Adds this element's share, with rotation `r` and `a = Rᵀ F`, to the negated
+    /// force `out` (`V R σ(A) g_k` at vertex `k`) and the stored blocks of `K̂`:
+    ///
+    /// `K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (ĝ_a · ĝ_b) I)`,  `ĝ_k = R g_k`
+    ///
+    /// (`ĝ_a · ĝ_b = g_a · g_b`: a rotation keeps dot products). Written as
+    /// `(Vλ ĝ_a) ĝ_bᵀ + ĝ_b (Vμ ĝ_a)ᵀ` with the scaled gradients formed once per
+    /// vertex, a block costs two products and two sums per entry.
+    #[inline]
+    fn add_rotated(
+        &self,
+        r: &Matrix3<f64>,
+        a: &Matrix3<f64>,
+        out: &mut [Vector3<f64>],
+        blocks: &mut [Matrix3<f64>],
+    ) {
+        let v = self.volume;
+        self.scatter(&(v * r * self.stress(a)), out);
+        let [g1, g2, g3] = self.g;
+        let (h1, h2, h3) = (r * g1, r * g2, r * g3);
+        let h = [-(h1 + h2 + h3), h1, h2, h3];
+        let (vl, vm) = (v * self.lambda, v * self.mu);
+        let lh = h.map(|h| vl * h);
+        let mh = h.map(|h| vm * h);
+        for (&(a, b), &slot) in PAIRS.iter().zip(&self.slot) {
+            let d = mh[a].dot(&h[b]);
+            let mut block = lh[a] * h[b].transpose() + h[b] * mh[a].transpose();
+            block.m11 += d;
+            block.m22 += d;
+            block.m33 += d;
+            blocks[slot as usize] += block;
+        }
+    }
 }
 
-/// The elements of `model`'s mesh, for the corotational model.
+/// The elements of `model`'s mesh, for the corotational model, each with its
+/// vertices sorted (see [`PAIRS`]).
 pub(super) fn elements(
     positions: &[Point3<f64>],
     tets: &[[u32; 4]],
@@ -134,15 +174,18 @@ pub(super) fn elements(
 ) -> Vec<Element> {
     tets.iter()
         .zip(tet_material)
-        .map(|(&tet, &m)| {
-            let (g, volume) = super::shape_gradients(positions, tet);
+        .map(|(&mesh_tet, &m)| {
+            let (mesh_g, volume) = super::shape_gradients(positions, mesh_tet);
+            let mut order = [0, 1, 2, 3];
+            order.sort_unstable_by_key(|&k| mesh_tet[k]);
+            let tet = order.map(|k| mesh_tet[k]);
+            let g = order.map(|k| mesh_g[k]);
             let (lambda, mu) = materials[m as usize].lame();
             let slot = PAIRS.map(|(a, b)| {
-                let (i, j) = (tet[a], tet[b]);
-                let k = stiffness
-                    .find_upper(i.min(j), i.max(j))
-                    .expect("every pair of a tetrahedron's vertices is an edge of the mesh");
-                k as u32 | if i > j { TRANSPOSED } else { 0 }
+                stiffness
+                    .find_upper(tet[a], tet[b])
+                    .expect("every pair of a tetrahedron's vertices is an edge of the mesh")
+                    as u32
             });
             Element {
                 tet,
@@ -285,16 +328,21 @@ pub(super) fn negated_force_on(
 }
 
 /// The per-tick state of the corotational model: each element's rotation (the warm
-/// start of the next extraction), the rotated stiffness `K̂` and the offset `o`.
-/// Allocated once; [`update`](Self::update) and [`force`](Self::force) allocate
-/// nothing.
+/// start of the next extraction), the rotated stiffness `K̂`, and the positions `x₀`
+/// of the last update with the negated force `f₀ = K̂ u₀ + o` there, which together
+/// hold the affine force of the frozen rotations (the offset `o` itself is not
+/// assembled: `K̂ u + o = f₀ + K̂ (x − x₀)`, and a tick needs it only on the rows of
+/// the imposed vertices). Allocated once; [`update`](Self::update) and
+/// [`force`](Self::force) allocate nothing.
 #[derive(Clone, Debug)]
 pub struct Corotated {
     rotation: Vec<UnitQuaternion<f64>>,
     /// `K̂ = Σ_e R_e K_e R_eᵀ`, on the pattern of the model's stiffness, N/m.
     pub tangent: BlockMatrix,
-    /// `o = Σ_e R_e K_e (R_eᵀ X_e − X_e)`, N.
-    pub offset: Vec<Vector3<f64>>,
+    /// `x₀`, m.
+    at: Vec<Point3<f64>>,
+    /// `f₀ = Σ_e R_e K_e (R_eᵀ x₀_e − X_e)`, N.
+    force_at: Vec<Vector3<f64>>,
 }
 
 impl Corotated {
@@ -303,7 +351,8 @@ impl Corotated {
         Corotated {
             rotation: vec![UnitQuaternion::identity(); model.elements.len()],
             tangent: model.stiffness.clone(),
-            offset: vec![Vector3::zeros(); model.vertex_count()],
+            at: model.rest.clone(),
+            force_at: vec![Vector3::zeros(); model.vertex_count()],
         }
     }
 
@@ -317,12 +366,11 @@ impl Corotated {
         *self.rotation[e].to_rotation_matrix().matrix()
     }
 
-    /// Extracts every element's rotation at `x`, reassembles `K̂` and `o` with them,
-    /// and writes `out = K̂ u + o = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic
-    /// force at `x` (N).
+    /// Extracts every element's rotation at `x`, reassembles `K̂` with them, and
+    /// writes `out = K̂ u + o = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic
+    /// force at `x` (N), which is kept with `x` for [`row`](Self::row).
     pub fn update(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
-        self.offset.iter_mut().for_each(|o| *o = Vector3::zeros());
         self.tangent
             .block
             .iter_mut()
@@ -330,37 +378,33 @@ impl Corotated {
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
             let p = polar(&f, q, WARM_ITERATIONS);
-            let r = p.r;
-            let g = e.gradients();
-            let rs = e.volume * r * e.stress(&p.a);
-            let ro = e.volume * r * e.stress(&r);
-            e.scatter(&rs, out);
-            e.scatter(&ro, &mut self.offset);
-            // K̂_ab = V (λ ĝ_a ĝ_bᵀ + μ ĝ_b ĝ_aᵀ + μ (g_a · g_b) I); the stored block of a
-            // transposed pair is K̂_abᵀ, the same with λ and μ swapped on the outer
-            // products.
-            let gh = g.map(|g| r * g);
-            let (vl, vm) = (e.volume * e.lambda, e.volume * e.mu);
-            for (&(a, b), &slot) in PAIRS.iter().zip(&e.slot) {
-                let outer = gh[a] * gh[b].transpose();
-                let (p, s) = if slot & TRANSPOSED != 0 {
-                    (vm, vl)
-                } else {
-                    (vl, vm)
-                };
-                let mut block = outer * p + outer.transpose() * s;
-                let d = vm * g[a].dot(&g[b]);
-                block.m11 += d;
-                block.m22 += d;
-                block.m33 += d;
-                self.tangent.block[(slot & !TRANSPOSED) as usize] += block;
-            }
+            e.add_rotated(&p.r, &p.a, out, &mut self.tangent.block);
         }
+        self.at.copy_from_slice(x);
+        self.force_at.copy_from_slice(out);
+    }
+
+    /// Row `i` of `K̂ u + o` at `x` with the rotations of the last
+    /// [`update`](Self::update): `f₀_i + Σ_j K̂_ij (x_j − x₀_j)`, N (exact: with
+    /// the rotations frozen the force is affine in `x`). The reaction on an imposed
+    /// vertex, at the cost of its row.
+    pub fn row(&self, i: usize, x: &[Point3<f64>]) -> Vector3<f64> {
+        let mut acc = self.force_at[i];
+        self.tangent
+            .for_each_in_row(i, |j, k| acc += k * (x[j] - self.at[j]));
+        acc
+    }
+
+    /// Bytes held (for memory reports).
+    pub fn heap_bytes(&self) -> usize {
+        self.tangent.heap_bytes()
+            + (self.at.capacity() + self.force_at.capacity()) * 24
+            + self.rotation.capacity() * std::mem::size_of::<UnitQuaternion<f64>>()
     }
 
     /// Extracts every element's rotation at `x` and writes
     /// `out = Σ_e R_e K_e (R_eᵀ x_e − X_e)` (the negated elastic force, N), leaving
-    /// `K̂` and `o` as they were: what an explicit substep needs.
+    /// `K̂`, `x₀` and `f₀` as they were: what an explicit substep needs.
     pub fn force(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {

@@ -76,8 +76,9 @@ fn a_rigidly_turned_liver_feels_no_elastic_force() {
 
 #[test]
 fn rotated_tangent_and_offset_give_the_force() {
-    // update() writes the force and K̂, o: K̂ u + o must be that same force, and K̂
-    // must be the sum of the element tensors of the rotated rest shapes R_e X_e.
+    // update() writes the force and K̂: K̂ u + o must be that same force (and the
+    // kept affine force's rows must be K̂ u + o at any configuration), and K̂ must be
+    // the sum of the element tensors of the rotated rest shapes R_e X_e.
     let mesh = liver_mesh();
     let (_, model) = models(&mesh, 0.3);
     let q = Rotation3::new(Vector3::new(0.4, 1.1, -0.3));
@@ -92,15 +93,30 @@ fn rotated_tangent_and_offset_give_the_force() {
     for _ in 0..3 {
         c.update(&model, &x, &mut force);
     }
-    let u: Vec<_> = x.iter().zip(&model.rest).map(|(x, r)| x - r).collect();
-    let mut ku = vec![Vector3::zeros(); n];
-    c.tangent.mul(&u, &mut ku);
+    // o = Σ_e R_e K_e (R_eᵀ X_e − X_e), from the rotations alone; each row of
+    // K̂ u + o, at x and at another configuration y, is the kept affine force's row.
+    let mut offset = vec![Vector3::zeros(); n];
+    for (e, el) in model.elements.iter().enumerate() {
+        let r = c.rotation(e);
+        let rs = el.volume * r * el.stress(&r);
+        for (&v, g) in el.tet.iter().zip(&el.gradients()) {
+            offset[v as usize] += rs * g;
+        }
+    }
     let scale = max_norm(&force);
-    for i in 0..n {
-        assert!(
-            (ku[i] + c.offset[i] - force[i]).norm() <= 1e-11 * scale,
-            "row {i}"
-        );
+    for y in [x.clone(), x.iter().map(|p| p + wobble(p, 0.02)).collect()] {
+        let u: Vec<_> = y.iter().zip(&model.rest).map(|(y, r)| y - r).collect();
+        let mut ku = vec![Vector3::zeros(); n];
+        c.tangent.mul(&u, &mut ku);
+        for i in 0..n {
+            assert!(
+                (ku[i] + offset[i] - c.row(i, &y)).norm() <= 1e-11 * scale,
+                "row {i}"
+            );
+        }
+    }
+    for (i, f) in force.iter().enumerate() {
+        assert!((c.row(i, &x) - f).norm() <= 1e-11 * scale, "row {i}");
     }
     let mut expected = BlockMatrix::with_pattern(n, &mesh.edges);
     for (e, &t) in mesh.tets.iter().enumerate() {

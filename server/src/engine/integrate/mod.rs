@@ -289,14 +289,12 @@ impl Integrator {
             .reaction
             .iter_mut()
             .for_each(|r| *r = Vector3::zeros());
-        let (k, offset) = match &self.corotated {
-            Some(c) => (&c.tangent, Some(&c.offset)),
-            None => (&model.stiffness, None),
-        };
         for &i in imposed.list() {
             let i = i as usize;
-            let o = offset.map_or_else(Vector3::zeros, |o| o[i]);
-            state.reaction[i] = -(k.row_times(i, &self.u) + o);
+            state.reaction[i] = -match &self.corotated {
+                Some(c) => c.row(i, &state.x),
+                None => model.stiffness.row_times(i, &self.u),
+            };
         }
     }
 
@@ -305,14 +303,8 @@ impl Integrator {
         (self.u.capacity() + self.f.capacity() + self.w.capacity()) * 24
             + self.start.capacity() * 24
             + self.cg.heap_bytes()
-            + self.corotated.as_ref().map_or(0, |c| {
-                c.tangent.heap_bytes() + c.offset.capacity() * 24 + model_rotation_bytes(c)
-            })
+            + self.corotated.as_ref().map_or(0, Corotated::heap_bytes)
     }
-}
-
-fn model_rotation_bytes(c: &Corotated) -> usize {
-    c.rotation_count() * std::mem::size_of::<nalgebra::UnitQuaternion<f64>>()
 }
 
 #[cfg(test)]

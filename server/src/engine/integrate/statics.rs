@@ -88,10 +88,12 @@ pub(super) fn solve(
         let k = match &mut it.corotated {
             Some(c) => {
                 c.update(model, &state.x, &mut it.w);
+                // o = f₀ − K̂ u₀, with K̂ u₀ in f (u holds x − X throughout).
+                c.tangent.mul(&it.u, &mut it.f);
                 let mut residual = 0.0;
                 for i in 0..model.vertex_count() {
                     let load = model.mass[i] * gravity;
-                    it.f[i] = load - c.offset[i];
+                    it.f[i] = load - (it.w[i] - it.f[i]);
                     if !mask[i] {
                         residual += (load - it.w[i]).norm_squared();
                     }
