@@ -36,6 +36,13 @@ pub fn http1() -> SocketAddr {
         let _ = stream.write_all(
             b"HTTP/1.1 200 OK\r\nContent-Type: text/plain\r\nContent-Length: 5\r\nConnection: close\r\n\r\nhello",
         );
+        // Close gracefully: end the answer, then read what the client still sends
+        // until it hangs up. Dropping the socket with unread bytes in its buffer
+        // (the rest of an HTTP/2 preface that came after the first read) makes the
+        // kernel reset the connection, and the client may see the reset before the
+        // answer.
+        let _ = stream.shutdown(std::net::Shutdown::Write);
+        while matches!(stream.read(&mut buffer), Ok(n) if n > 0) {}
     })
 }
 
