@@ -50,6 +50,16 @@ fn wobble(p: &Point3<f64>, scale: f64) -> Vector3<f64> {
         )
 }
 
+/// The mesh's rest points wobbled by `scale` and then turned by the rotation whose
+/// axis-angle vector is `turn`: a large rotation with a strain on top.
+fn turned(mesh: &TetMesh, turn: Vector3<f64>, scale: f64) -> Vec<Point3<f64>> {
+    let q = Rotation3::new(turn);
+    mesh.positions
+        .iter()
+        .map(|p| q * (p + wobble(p, scale)))
+        .collect()
+}
+
 #[test]
 fn a_rigidly_turned_liver_feels_no_elastic_force() {
     // x = Q X + c with Q a 90° rotation: R_e = Q, S = I, no strain, no force. The
@@ -81,12 +91,7 @@ fn rotated_tangent_and_offset_give_the_force() {
     // the sum of the element tensors of the rotated rest shapes R_e X_e.
     let mesh = liver_mesh();
     let (_, model) = models(&mesh, 0.3);
-    let q = Rotation3::new(Vector3::new(0.4, 1.1, -0.3));
-    let x: Vec<_> = mesh
-        .positions
-        .iter()
-        .map(|p| q * (p + wobble(p, 0.05)))
-        .collect();
+    let x = turned(&mesh, Vector3::new(0.4, 1.1, -0.3), 0.05);
     let n = x.len();
     let mut c = model.corotated().unwrap();
     let mut force = vec![Vector3::zeros(); n];
@@ -153,12 +158,7 @@ fn the_force_on_one_vertex_is_its_row_of_the_whole_force() {
     // extracted afresh), not the linear K u, which differs at the level of the force
     // itself on this turned shape.
     let mesh = liver_mesh();
-    let q = Rotation3::new(Vector3::new(0.4, 1.1, -0.3));
-    let x: Vec<_> = mesh
-        .positions
-        .iter()
-        .map(|p| q * (p + wobble(p, 0.05)))
-        .collect();
+    let x = turned(&mesh, Vector3::new(0.4, 1.1, -0.3), 0.05);
     let (linear, corot) = models(&mesh, 0.3);
     for model in [&linear, &corot] {
         let mut whole = vec![Vector3::zeros(); x.len()];
@@ -189,12 +189,7 @@ fn forces_are_the_gradient_of_the_corotated_energy() {
     // the O(δ²) truncation of the difference.
     let mesh = liver_mesh();
     let (_, model) = models(&mesh, 0.45);
-    let q = Rotation3::new(Vector3::new(0.0, 0.9, 0.2));
-    let x: Vec<_> = mesh
-        .positions
-        .iter()
-        .map(|p| q * (p + wobble(p, 0.1)))
-        .collect();
+    let x = turned(&mesh, Vector3::new(0.0, 0.9, 0.2), 0.1);
     let minus_f = corotational_force(&model, &x);
     let d: Vec<_> = mesh
         .positions
@@ -240,12 +235,7 @@ fn explicit_bound_covers_every_rotation() {
     // for a turned, deformed liver (power iteration converges to it from below).
     let mesh = liver_mesh();
     let (_, model) = models(&mesh, 0.49);
-    let q = Rotation3::new(Vector3::new(0.7, 0.0, 0.7));
-    let x: Vec<_> = mesh
-        .positions
-        .iter()
-        .map(|p| q * (p + wobble(p, 0.2)))
-        .collect();
+    let x = turned(&mesh, Vector3::new(0.7, 0.0, 0.7), 0.2);
     let mut c = model.corotated().unwrap();
     let n = x.len();
     let mut scratch = vec![Vector3::zeros(); n];
