@@ -202,6 +202,9 @@ impl ContactStage {
         imposed: &mut Imposed,
         dt: f64,
     ) {
+        if let Some(settle) = &mut self.settle {
+            settle.next_tick();
+        }
         for (k, ins) in instruments.iter_mut().enumerate() {
             ins.report.clear();
             let Some(pose) = ins.current else { continue };
@@ -349,7 +352,7 @@ impl ContactStage {
         let mut largest: f64 = 0.0;
         for &v in &surface.vertices {
             let vi = v as usize;
-            if self.holders[vi] != 0 && !self.s.fixed[vi] {
+            if self.holders[vi] != 0 && !self.s.fixed[vi] && !settle.taken_back(v) {
                 let d = state.x[vi] - self.end[vi];
                 if d != Vector3::zeros() {
                     largest = largest.max(d.norm());
@@ -461,6 +464,7 @@ impl ContactStage {
         let radius = ins.radius;
         let holders = &mut self.holders;
         let slide = &mut self.slide;
+        let settle = &mut self.settle;
         let s = &self.s;
         ins.held.retain(|&v| {
             let vi = v as usize;
@@ -503,6 +507,9 @@ impl ContactStage {
                 Hold::Release => false,
             };
             if !keep {
+                if let Some(settle) = settle.as_mut() {
+                    settle.let_go(v);
+                }
                 slide[vi] = Vector3::zeros();
                 holders[vi] &= !bit;
                 if holders[vi] == 0 && !s.fixed[vi] {
