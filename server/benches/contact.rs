@@ -28,9 +28,9 @@
 //! edges and candidate triangles per tick are medians of the per-tick deltas of the
 //! stage's counters.
 //!
-//! `LAPARO_CONTACT_SETTLE=1` runs every case with the scene's `contact.settle` on (the
-//! free tissue around the stage's jumps settled with them), to compare with the
-//! default back to back.
+//! `LAPARO_CONTACT_SETTLE=0` runs every case with the scene's `contact.settle` off (the
+//! free tissue around the stage's jumps not settled with them; on by default), to
+//! compare with the default back to back.
 //!
 //! Table 2, both instruments tip-first (axis +z) at x = −0.02 and +0.02: the whole
 //! replayed tick, its contact part, share = median contact / median whole tick, and
@@ -220,7 +220,9 @@ fn press(sim: &mut Simulation, presses: &mut [Press], label: &str, run: &mut Run
 fn settled(file: &str) -> Simulation {
     let mut scene = Scene::default_scene();
     scene.mesh.file = file.to_string();
-    scene.contact.settle = std::env::var_os("LAPARO_CONTACT_SETTLE").is_some_and(|v| v == "1");
+    if std::env::var_os("LAPARO_CONTACT_SETTLE").is_some_and(|v| v == "0") {
+        scene.contact.settle = false;
+    }
     let mut sim = build(&scene);
     for _ in 0..60 {
         sim.tick();

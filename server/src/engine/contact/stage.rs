@@ -8,7 +8,7 @@
 //! - the integrator advances the liver with those vertices imposed (free motion);
 //! - [`ContactStage::resolve_contact`]: for each instrument in turn, the steps of
 //!   §2.3–2.6 on the surface seen from the instrument, then the hold/release decision,
-//!   then, when the scene asks for it (`contact.settle`), the free tissue around the
+//!   then, unless the scene turns it off (`contact.settle`), the free tissue around the
 //!   vertices the steps jumped is settled with them (`settle`: without it the
 //!   first-contact tick's reaction is that of one vertex displaced against fixed
 //!   neighbours, up to 49× the steady force), then one more
@@ -74,7 +74,7 @@ pub struct ContactStage {
     slid: Vec<Vector3<f64>>,
     /// The vertices the stage jumped this tick, for the settling.
     jumped: Vec<u32>,
-    /// The settling's buffers, when the scene asks for it (`contact.settle`).
+    /// The settling's buffers, unless the scene turns it off (`contact.settle`).
     settle: Option<Settle>,
     s: Scratch,
 }
@@ -331,7 +331,7 @@ impl ContactStage {
 
     /// Settles the free tissue around the held vertices the contact steps jumped this
     /// tick (see `settle`), when the largest jump exceeds [`SETTLE_JUMP`] of the
-    /// smallest radius and the scene asks for it. Returns whether it did.
+    /// smallest radius, unless the scene turns it off. Returns whether it did.
     fn settle_jumps(
         &mut self,
         instruments: &[Instrument],

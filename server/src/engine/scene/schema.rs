@@ -198,17 +198,29 @@ fn default_friction() -> f64 {
 }
 
 /// The contact stage.
-#[derive(Clone, Debug, Default, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
     /// Settle the free tissue around the vertices the contact steps jump, so that the
     /// first-contact tick's force is that of the tissue, not of one vertex pushed
-    /// against fixed neighbours (`engine/contact/settle.rs`). Off by default: with it
-    /// a hand keeps hold of the tissue it touches, and the calibrated force model's
-    /// rendering of that tissue's drag, a force sampled at the mechanics rate, is not
-    /// passive at 60 Hz (see ARCHITECTURE.md).
-    #[serde(default)]
+    /// against fixed neighbours (`engine/contact/settle.rs`). On unless the scene
+    /// turns it off; off, a first contact reports up to 49× the steady force (ν =
+    /// 0.499) and an explicit step on stiff tissue can chatter.
+    #[serde(default = "default_settle")]
     pub settle: bool,
+}
+
+impl Default for ContactSpec {
+    fn default() -> Self {
+        ContactSpec {
+            settle: default_settle(),
+        }
+    }
+}
+
+/// The contact's jumps are settled unless the scene says otherwise.
+fn default_settle() -> bool {
+    true
 }
 
 /// How reaction forces are computed.

@@ -178,10 +178,11 @@ fn the_preconditioner_is_auto_unless_the_scene_names_one() {
 }
 
 #[test]
-fn the_contact_is_not_settled_unless_the_scene_asks() {
-    assert!(!parse(MINIMAL).unwrap().contact.settle);
-    let scene = parse(&format!("{MINIMAL}\n[contact]\nsettle = true\n"));
-    assert!(scene.unwrap().contact.settle);
+fn the_contact_is_settled_unless_the_scene_says_not() {
+    assert!(parse(MINIMAL).unwrap().contact.settle);
+    assert!(crate::engine::scene::Scene::default_scene().contact.settle);
+    let scene = parse(&format!("{MINIMAL}\n[contact]\nsettle = false\n"));
+    assert!(!scene.unwrap().contact.settle);
     expect_path(
         parse(&format!("{MINIMAL}\n[contact]\nsettle = 1\n")),
         "contact.settle",
