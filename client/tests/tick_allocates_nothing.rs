@@ -76,11 +76,13 @@ fn models(n: usize) -> Vec<LocalModel> {
                     normal: Unit::new_normalize(Vector3::new(0.2 * a.sin(), 0.2 * a.cos(), 1.0)),
                     anchor: Point3::new(0.0, 0.0, 0.002 * a.sin()),
                     stiffness: 300.0 + 100.0 * a.cos(),
+                    drag: nalgebra::Vector3::zeros(),
                 }),
                 shaft_plane: (i % 3 == 0).then(|| Plane {
                     normal: Unit::new_normalize(Vector3::new(1.0, 0.1 * a.sin(), 0.0)),
                     anchor: Point3::new(0.004, 0.0, 0.01),
                     stiffness: 200.0,
+                    drag: nalgebra::Vector3::zeros(),
                 }),
                 kind: ForceModel::Calibrated,
                 young_modulus: Some(3.0e3),

@@ -21,6 +21,9 @@ pub struct Plane {
     pub anchor: Point3<f64>,
     /// Apparent stiffness `λ`, N/m.
     pub stiffness: f64,
+    /// The drag of the tissue the plane's contact holds, at the pose the model was
+    /// made for: the reaction's part along the plane (orthogonal to `n`), N.
+    pub drag: Vector3<f64>,
 }
 
 /// Eq. 8: the plane's force on the instrument whose tip is at `tip`,

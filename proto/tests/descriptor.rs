@@ -368,6 +368,7 @@ fn instrument_state() -> InstrumentState {
                 normal: vec3(0.0, 0.0, 1.0),
                 anchor: vec3(0.01, -0.02, 0.051),
                 stiffness_n_per_m: 350.0,
+                drag_n: vec3(0.05, 0.0, 0.0),
             }),
             shaft_plane: Some(LocalPlane {
                 active: false,

@@ -175,25 +175,25 @@ fn assert_passive(run: &HandRun, what: &str) {
 }
 
 /// The hand pulled 2, 5 and 8 mm past the surface of stiff tissue comes to rest on
-/// it, with the paper's (geometric) force model and the contact's jumps settled (the
-/// default scene's).
+/// it, with both force models and the contact's jumps settled (the default scene's).
 ///
-/// The calibrated model is left out: its drag, a plane tilted along the reaction and
-/// refitted once a mechanics tick, is a lateral force sampled at 60 Hz with the
-/// stiffness of the one or two vertices the tip holds on the coarse liver (fitted
-/// anywhere from 10² to 10⁶ N/m from tick to tick on 1 MPa tissue), and it puts
-/// energy into this hand on 1 MPa tissue at every target from 2 to 8 mm with the
-/// settling, and at 2, 3 and 4 mm without it; at 5–8 mm without it the hand rests
-/// only because the first-contact spike threw the tip off the tissue, holding
-/// nothing (see `server/src/engine/contact/settle.rs`).
+/// The calibrated model renders the held tissue's drag at haptic rate, with the
+/// tissue's pull back as the instrument moves sideways
+/// (`laparo_proto::force::LocalModel::force`). Rendered instead by tilting its plane
+/// along the reaction, refitted once a mechanics tick, the drag was a lateral spring
+/// sampled at 60 Hz, and this hand gained energy on 1 MPa tissue at every one of these
+/// targets with the settling, and at 2, 3 and 4 mm without it.
 #[test]
 fn the_hand_on_stiff_tissue_does_not_oscillate() {
     let k_h = HandParams::default().stiffness;
     let radius = Scene::default_scene().instruments[0].radius;
     for e in [1e6, 1e7] {
-        for depth in [0.002, 0.005, 0.008] {
-            let run = hand_on_liver(e, ForceModelKind::Geometric, 10.0, depth);
-            let what = format!("E {e} Pa, target {} mm", depth * 1e3);
+        for (kind, depth) in [ForceModelKind::Geometric, ForceModelKind::Calibrated]
+            .into_iter()
+            .flat_map(|kind| [0.002, 0.005, 0.008].map(|depth| (kind, depth)))
+        {
+            let run = hand_on_liver(e, kind, 10.0, depth);
+            let what = format!("E {e} Pa, {kind:?}, target {} mm", depth * 1e3);
             assert_passive(&run, &what);
             // The hand presses on the tissue (200 N/m toward a target `depth` past
             // the surface) and rests on it: the tip's plane lies one radius `r` out

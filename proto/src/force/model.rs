@@ -81,19 +81,23 @@ impl LocalModel {
     ///   model was made for, `n₁ ⟂ Z` and `d₁ = (A₁ − P)·n₁`, the paper's depth of the
     ///   tip; when the instrument pivots about its trocar, the shaft contact moves by
     ///   its own lever arm rather than the tip's.
+    /// - Each plane that carries a drag (the calibrated model's) adds it, with the
+    ///   held tissue's pull back toward where its contact point (`P`, or `Q`) was at
+    ///   the model's pose ([`held_drag`]).
     /// - The two combine by eq. 9 ([`combine`]); the result applies at the
     ///   magnitude-weighted point `C = (|f₀| P + |f₁| Q) / (|f₀| + |f₁|)`, which moves
     ///   continuously from `P` to `Q` as the contacts change (and is `P` without force).
     pub fn force(&self, tip: &Point3<f64>, axis: &Unit<Vector3<f64>>) -> AppliedForce {
-        let f0 = self
-            .tip_plane
-            .as_ref()
-            .map_or_else(Vector3::zeros, |p| plane_force(p, tip));
+        let f0 = self.tip_plane.as_ref().map_or_else(Vector3::zeros, |p| {
+            plane_force(p, tip) + held_drag(p, &self.tip, tip)
+        });
         let (f1, q) = match &self.shaft_plane {
             Some(plane) => {
                 let s = (plane.anchor - tip).dot(axis).max(0.0);
                 let q = tip + axis.into_inner() * s;
-                (plane_force(plane, &q), q)
+                let s0 = (plane.anchor - self.tip).dot(&self.axis).max(0.0);
+                let q0 = self.tip + self.axis.into_inner() * s0;
+                (plane_force(plane, &q) + held_drag(plane, &q0, &q), q)
             }
             None => (Vector3::zeros(), *tip),
         };
@@ -107,5 +111,41 @@ impl LocalModel {
             force: combine(&f0, &f1),
             point,
         }
+    }
+}
+
+/// The drag of the tissue a plane holds, at contact point `X` (`at`) of a model made
+/// with that point at `X₀` (`made_at`), N:
+///
+/// `f_t = clamp(D min(1, d/d₀) + λ (X₀ − X)_⊥,  c λ d)`,  `c = max(1, |D| / (λ d₀))`,
+///
+/// with `D` the plane's drag at the model's pose, `(·)_⊥` the part orthogonal to `n`,
+/// `d` and `d₀` the depths at `X` and `X₀`, and the clamp on the magnitude. At the
+/// model's pose it is `D`, so the model gives the elastic reaction there. Moving the
+/// instrument sideways pulls back at once with the stiffness `λ`, as the held tissue
+/// does, rather than at the next model; the held tissue's lateral stiffness is below
+/// its normal one (`2(1 − ν)/(2 − ν)` of it for a punch on a half-space, 0.71 at
+/// ν = 0.45), so `λ` errs on the stiff side and a new model lowers the pull: the
+/// refits take energy out rather than put it in. Withdrawing, the drag fades with the
+/// depth and the clamp (a cone about `n` wide enough for `D`) brings the whole to
+/// zero continuously as the contact ends. Zero without drag, when not pressed
+/// (`d ≤ 0`), and for a plane ahead of a tip that holds nothing (`d₀ ≤ 0`).
+fn held_drag(plane: &Plane, made_at: &Point3<f64>, at: &Point3<f64>) -> Vector3<f64> {
+    let n = plane.normal.into_inner();
+    let depth = (plane.anchor - at).dot(&n);
+    let made = (plane.anchor - made_at).dot(&n);
+    if depth <= 0.0 || made <= 0.0 || plane.drag == Vector3::zeros() {
+        return Vector3::zeros();
+    }
+    let offset = made_at - at;
+    let lateral = offset - n * offset.dot(&n);
+    let pull = plane.drag * (depth / made).min(1.0) + lateral * plane.stiffness;
+    let cone = (plane.drag.norm() / (plane.stiffness * made)).max(1.0);
+    let cap = cone * plane.stiffness * depth;
+    let norm = pull.norm();
+    if norm > cap {
+        pull * (cap / norm)
+    } else {
+        pull
     }
 }

@@ -90,6 +90,7 @@ fn plane_force_grows_with_depth_and_stiffness_and_points_out() {
         normal: Unit::new_normalize(Vector3::new(0.0, 0.0, 1.0)),
         anchor: Point3::origin(),
         stiffness: 200.0,
+        drag: nalgebra::Vector3::zeros(),
     };
     assert_eq!(
         plane_force(&plane, &Point3::new(0.1, 0.0, 0.01)),
@@ -101,6 +102,7 @@ fn plane_force_grows_with_depth_and_stiffness_and_points_out() {
     assert!((f2 - f1 * 2.0).norm() < 1e-12);
     let stiffer = Plane {
         stiffness: 400.0,
+        drag: nalgebra::Vector3::zeros(),
         ..plane
     };
     assert!((plane_force(&stiffer, &Point3::new(0.0, 0.0, -0.01)) - f1 * 2.0).norm() < 1e-12);
@@ -135,11 +137,13 @@ fn two_plane_model() -> LocalModel {
             normal: z_up(),
             anchor: Point3::new(0.0, 0.0, 0.002),
             stiffness: 100.0,
+            drag: nalgebra::Vector3::zeros(),
         }),
         shaft_plane: Some(Plane {
             normal: x,
             anchor: Point3::new(0.003, 0.0, 0.05),
             stiffness: 300.0,
+            drag: nalgebra::Vector3::zeros(),
         }),
         young_modulus: Some(4500.0),
         kind: ForceModel::Calibrated,
@@ -241,6 +245,16 @@ fn bad_local_models_name_their_field() {
             WireError::NotFinite("tip_plane.stiffness_n_per_m"),
         ),
         (
+            Box::new(|m| {
+                m.tip_plane.as_mut().unwrap().drag_n = Some(crate::v1::Vec3 {
+                    x: 0.0,
+                    y: f64::NAN,
+                    z: 0.0,
+                })
+            }),
+            WireError::NotFinite("tip_plane.drag_n"),
+        ),
+        (
             Box::new(|m| m.young_modulus_pa = Some(f64::NAN)),
             WireError::NotFinite("young_modulus_pa"),
         ),
@@ -260,4 +274,77 @@ fn bad_local_models_name_their_field() {
     tip.active = false;
     tip.stiffness_n_per_m = f64::NAN;
     assert_eq!(LocalModel::try_from(&m).unwrap().tip_plane, None);
+}
+
+/// A calibrated tip plane made at the origin, 2 mm deep along +z with λ = 1000 N/m
+/// (a 2 N push), dragged 0.5 N along +x.
+fn dragged_tip() -> LocalModel {
+    LocalModel {
+        tip_plane: Some(Plane {
+            normal: z_up(),
+            anchor: Point3::new(0.0, 0.0, 0.002),
+            stiffness: 1000.0,
+            drag: Vector3::new(0.5, 0.0, 0.0),
+        }),
+        kind: ForceModel::Calibrated,
+        ..LocalModel::free(9, 0.2, Point3::origin(), z_up())
+    }
+}
+
+#[test]
+fn the_drag_is_felt_at_the_model_pose_and_pulls_back_sideways() {
+    let m = dragged_tip();
+    // At the model's pose: the push and the drag, the elastic reaction.
+    let f = m.force(&m.tip, &m.axis).force;
+    assert!((f - Vector3::new(0.5, 0.0, 2.0)).norm() < 1e-12, "{f}");
+    // 0.3 mm sideways (+x, +y): the held tissue pulls back with λ at once.
+    let moved = Point3::new(3e-4, -3e-4, 0.0);
+    let f = m.force(&moved, &m.axis).force;
+    let expected = Vector3::new(0.5 - 0.3, 0.3, 2.0);
+    assert!((f - expected).norm() < 1e-12, "{f}");
+    // Deeper by 1 mm: the push grows by λ · 1 mm, the drag stays.
+    let f = m.force(&Point3::new(0.0, 0.0, -0.001), &m.axis).force;
+    assert!((f - Vector3::new(0.5, 0.0, 3.0)).norm() < 1e-12, "{f}");
+}
+
+#[test]
+fn the_drag_fades_to_nothing_as_the_contact_ends() {
+    let m = dragged_tip();
+    // Half the model's depth: half the drag (and half the push).
+    let f = m.force(&Point3::new(0.0, 0.0, 0.001), &m.axis).force;
+    assert!((f - Vector3::new(0.25, 0.0, 1.0)).norm() < 1e-12, "{f}");
+    // Far to the side near the surface: the pull is held within the cone
+    // |f_t| ≤ max(1, |D| / (λ d₀)) λ d = λ d, and vanishes with d.
+    let mut last = f64::INFINITY;
+    for depth in [1e-3, 1e-4, 1e-5, 1e-6, 0.0] {
+        let at = Point3::new(-0.01, 0.004, 0.002 - depth);
+        let f = m.force(&at, &m.axis).force;
+        let lateral = Vector3::new(f.x, f.y, 0.0).norm();
+        assert!(lateral <= 1000.0 * depth * (1.0 + 1e-12), "{depth}: {f}");
+        assert!(lateral < last || lateral == 0.0);
+        last = lateral;
+    }
+    assert_eq!(
+        m.force(&Point3::new(-0.01, 0.004, 0.002), &m.axis).force,
+        Vector3::zeros()
+    );
+    // A geometric plane carries no drag and pulls nothing sideways.
+    let geometric = LocalModel {
+        kind: ForceModel::Geometric,
+        tip_plane: m.tip_plane.map(|p| Plane {
+            drag: Vector3::zeros(),
+            ..p
+        }),
+        ..m
+    };
+    let f = geometric.force(&Point3::new(3e-4, 0.0, 0.0), &m.axis).force;
+    assert!((f - Vector3::new(0.0, 0.0, 2.0)).norm() < 1e-12, "{f}");
+}
+
+#[test]
+fn the_drag_round_trips_through_the_wire() {
+    let m = dragged_tip();
+    let msg = crate::v1::LocalModel::from(&m);
+    assert!(msg.tip_plane.unwrap().drag_n.is_some());
+    assert_eq!(LocalModel::try_from(&msg).unwrap(), m);
 }

@@ -78,6 +78,7 @@ fn plane(
     normal: &'static str,
     anchor: &'static str,
     stiffness: &'static str,
+    drag: &'static str,
 ) -> Result<Option<Plane>, WireError> {
     let Some(p) = p.filter(|p| p.active) else {
         return Ok(None);
@@ -92,10 +93,15 @@ fn plane(
             value: k,
         });
     }
+    let drag = match p.drag_n.as_ref() {
+        Some(d) => vector(Some(d), drag)?,
+        None => Vector3::zeros(),
+    };
     Ok(Some(Plane {
         normal: unit(p.normal.as_ref(), normal)?,
         anchor: Point3::from(vector(p.anchor.as_ref(), anchor)?),
         stiffness: k,
+        drag,
     }))
 }
 
@@ -106,6 +112,7 @@ fn to_plane(p: &Option<Plane>) -> v1::LocalPlane {
             normal: Some(to_vec3(&p.normal)),
             anchor: Some(to_vec3(&p.anchor.coords)),
             stiffness_n_per_m: p.stiffness,
+            drag_n: (p.drag != Vector3::zeros()).then(|| to_vec3(&p.drag)),
         },
         None => v1::LocalPlane::default(),
     }
@@ -124,12 +131,14 @@ impl TryFrom<&v1::LocalModel> for LocalModel {
             "tip_plane.normal",
             "tip_plane.anchor",
             "tip_plane.stiffness_n_per_m",
+            "tip_plane.drag_n",
         )?;
         let shaft_plane = plane(
             m.shaft_plane.as_ref(),
             "shaft_plane.normal",
             "shaft_plane.anchor",
             "shaft_plane.stiffness_n_per_m",
+            "shaft_plane.drag_n",
         )?;
         let young_modulus = match m.young_modulus_pa {
             Some(e) if !e.is_finite() => return Err(WireError::NotFinite("young_modulus_pa")),

@@ -35,20 +35,12 @@
 //! On unless the scene turns it off (`contact.settle = false`). With it, a hand
 //! pressing on the coarse liver keeps hold of the tissue it touches, where without it
 //! the first-contact spike (83 N where the tissue gives 16 N, and 28° off) threw the
-//! tip back to rest on the approach plane holding nothing; with the paper's
-//! (geometric) force model the hand then comes to rest on the tissue, pulled 2, 5 or
-//! 8 mm past the surface of 1 or 10 MPa tissue (`tests/haptics.rs`).
-//!
-//! The calibrated force model's drag is not passive for that hand, with or without
-//! the settling: a plane tilted along the reaction, drag included, refitted once a
-//! mechanics tick, is a lateral force sampled at 60 Hz with the stiffness of the one
-//! or two held vertices (fitted anywhere from 10² to 10⁶ N/m from tick to tick on
-//! 1 MPa tissue), far beyond what a 0.15 kg hand can be stable against at that rate
-//! (`2m/T² ≈ 1,100 N/m`). The hand chatters (held 0↔1 every few ticks) and gains
-//! energy on 1 MPa tissue at every target from 2 to 8 mm with the settling, and at
-//! 2, 3 and 4 mm without it; at 5–8 mm without it, it rests only because the spike
-//! threw the tip off the tissue. Rendering that drag passively is open; the geometric
-//! model is the default.
+//! tip back to rest on the approach plane holding nothing; with either force model
+//! the hand then comes to rest on the tissue, pulled 2, 5 or 8 mm past the surface of
+//! 1 or 10 MPa tissue (`tests/haptics.rs`). Held tissue brings the calibrated force
+//! model's drag with it, which is rendered at haptic rate for that reason (see
+//! `engine/local_model`): sampled at the mechanics rate, as a plane tilted along the
+//! reaction, it put energy into the hand.
 //!
 //! **A vertex taken back is not settled.** While a held shaft's friction slides close
 //! in on the cone, a vertex at the edge of the held patch can be let go (pulled away)

@@ -1,7 +1,5 @@
 //! The apparent stiffness `λ` of the local-model planes (paper §3, eq. 8).
 
-use nalgebra::{Unit, Vector3};
-
 use crate::engine::elastic::ElasticModel;
 use crate::engine::mesh::TetMesh;
 
@@ -72,45 +70,16 @@ pub fn geometric_shaft(radius: f64, length: f64, material: (f64, f64)) -> f64 {
     geometric_tip((area / std::f64::consts::PI).sqrt(), material)
 }
 
-/// The calibrated plane's normal: the direction of the tissue's force `reaction` on
-/// the plane's vertices (for the shaft plane, its part orthogonal to the axis `Z`, so
-/// that the plane still holds the axis), when that force pushes out of the tissue
-/// (`reaction · geometric > 0`) and is not negligible; else the geometric normal.
-///
-/// With the normal along the reaction, the plane's force at the tick's pose is the
-/// reaction itself, tangential drag included (tissue held by the instrument sticks to
-/// it up to the friction bound and drags along a sliding instrument), where a plane
-/// along the surface normal renders only the normal push.
-pub fn fitted_normal(
-    reaction: &Vector3<f64>,
-    geometric: Unit<Vector3<f64>>,
-    axis: Option<&Unit<Vector3<f64>>>,
-) -> Unit<Vector3<f64>> {
-    let along = match axis {
-        Some(z) => reaction - z.into_inner() * reaction.dot(z),
-        None => *reaction,
-    };
-    // 1e-9 N: far below any force a device renders, far above rounding of the sum.
-    match Unit::try_new(along, 1e-9) {
-        Some(n) if n.dot(&geometric) > 0.0 => n,
-        _ => geometric,
-    }
-}
-
-/// What one plane's contact gives for calibration.
-///
-/// Two normals are at play: the geometric one `n` (the surface's, along which the
-/// indentation is measured) and the fitted one `n_f` (along the reaction, drag
-/// included, see [`fitted_normal`]). The stiffness relates push to indentation along
-/// the same normal, `λ = (R·n)/δ`; the depth renders the whole reaction, `R·n_f`.
+/// What one plane's contact gives for calibration: the indentation and the push,
+/// both along the plane's normal `n` (the surface's). The reaction's part along the
+/// plane, the drag, is no stiffness against pressing and is rendered apart (the
+/// plane's `drag`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {
-    /// Indentation `δ` of the held vertices along the geometric normal `n`, m.
+    /// Indentation `δ` of the held vertices along `n`, m.
     pub indentation: f64,
-    /// The elastic model's reaction on them along the geometric normal, `R·n`, N.
-    pub normal_reaction: f64,
-    /// The reaction along the fitted normal, `R·n_f`, N.
-    pub reaction: f64,
+    /// The elastic model's reaction on them along `n`, `R·n`, N.
+    pub push: f64,
 }
 
 /// Calibration state of an instrument's two planes, kept from tick to tick while the
@@ -138,16 +107,15 @@ pub const MIN_INDENTATION: f64 = 1e-4;
 pub const RANGE: f64 = 100.0;
 
 impl Fit {
-    /// `(λ, depth)` such that `λ · depth` is the reaction `R = max(0, sample.reaction)`
-    /// exactly: the model reproduces the elastic force at the tick's pose.
+    /// `(λ, depth)` such that `λ · depth` is the push `max(0, R·n)` exactly: with the
+    /// drag rendered apart, the model reproduces the elastic force at the tick's pose.
     ///
     /// `λ` is the secant stiffness `(R·n) / δ` of the elastic model at this contact
     /// (the tangent too for the linear model; for the corotational one, whose reaction
     /// the contact stage reports with fresh rotations, the secant of the turned
     /// tissue): push and indentation along the same
     /// normal, within [`RANGE`] of `geometric`; while `δ < MIN_INDENTATION` the last
-    /// fitted `λ` (or `geometric`) is kept. The depth `R / λ` then sets the anchor: it
-    /// equals `δ` when the reaction is all push.
+    /// fitted `λ` (or `geometric`) is kept. The depth `(R·n) / λ` then sets the anchor.
     ///
     /// Why not `|R| / δ`: the drag of tissue stuck to the instrument is no stiffness
     /// against pressing. A single vertex under the tip, dragged sideways by a hand
@@ -156,13 +124,12 @@ impl Fit {
     /// geometric one) that a 0.15 kg hand at 1 kHz bounced on, kicked to the device's
     /// limit at every return by the approach plane that keeps the last `λ`.
     pub fn fit(&mut self, sample: Sample, geometric: f64) -> (f64, f64) {
-        let reaction = sample.reaction.max(0.0);
-        let push = sample.normal_reaction;
+        let push = sample.push;
         if sample.indentation >= MIN_INDENTATION && push > 0.0 {
             let lambda = (push / sample.indentation).clamp(geometric / RANGE, geometric * RANGE);
             self.lambda = Some(lambda);
         }
         let lambda = self.lambda.unwrap_or(geometric);
-        (lambda, reaction / lambda)
+        (lambda, push.max(0.0) / lambda)
     }
 }

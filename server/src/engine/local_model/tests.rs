@@ -22,8 +22,7 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
     let (lambda, depth) = fit.fit(
         Sample {
             indentation: MIN_INDENTATION / 2.0,
-            normal_reaction: 0.01,
-            reaction: 0.01,
+            push: 0.01,
         },
         50.0,
     );
@@ -33,8 +32,7 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
     let (lambda, depth) = fit.fit(
         Sample {
             indentation: 0.004,
-            normal_reaction: 0.6,
-            reaction: 0.6,
+            push: 0.6,
         },
         50.0,
     );
@@ -43,8 +41,7 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
     let (lambda, depth) = fit.fit(
         Sample {
             indentation: 0.0,
-            normal_reaction: 0.003,
-            reaction: 0.003,
+            push: 0.003,
         },
         50.0,
     );
@@ -53,8 +50,7 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
     let (lambda, depth) = fit.fit(
         Sample {
             indentation: 1e-3,
-            normal_reaction: 1e6,
-            reaction: 1e6,
+            push: 1e6,
         },
         50.0,
     );
@@ -65,8 +61,7 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
         fit.fit(
             Sample {
                 indentation: 0.002,
-                normal_reaction: -0.1,
-                reaction: -0.1
+                push: -0.1,
             },
             50.0
         )
@@ -76,29 +71,27 @@ fn the_fit_reproduces_the_reaction_and_keeps_its_stiffness_below_the_floor() {
 }
 
 #[test]
-fn drag_is_rendered_but_not_counted_as_stiffness() {
-    // 0.1 N of push for 2 mm of indentation, and the whole reaction (push and drag of
-    // tissue stuck to the instrument) 1 N along the fitted normal: λ is the push's
-    // 50 N/m, not 500 N/m, and the model still renders the whole 1 N at the pose.
+fn a_pull_teaches_no_stiffness() {
+    // 0.1 N of push for 2 mm of indentation: λ = 50 N/m. Then the tissue pulls (a
+    // vertex dragged back out): no push, no depth, and the last λ is kept.
     let mut fit = Fit::default();
     let (lambda, depth) = fit.fit(
         Sample {
             indentation: 0.002,
-            normal_reaction: 0.1,
-            reaction: 1.0,
+            push: 0.1,
         },
         40.0,
     );
-    assert!((lambda - 50.0).abs() < 1e-9, "{lambda}");
-    assert!((lambda * depth - 1.0).abs() < 1e-12);
-    // Pure drag with no push teaches no stiffness: the last one is kept.
-    let (lambda, _) = fit.fit(
+    assert!((lambda - 50.0).abs() < 1e-9 && (lambda * depth - 0.1).abs() < 1e-12);
+    let (lambda, depth) = fit.fit(
         Sample {
             indentation: 0.002,
-            normal_reaction: 0.0,
-            reaction: 1.0,
+            push: -0.3,
         },
         40.0,
     );
-    assert!((lambda - 50.0).abs() < 1e-9, "{lambda}");
+    assert!(
+        (lambda - 50.0).abs() < 1e-9 && depth == 0.0,
+        "{lambda} {depth}"
+    );
 }
