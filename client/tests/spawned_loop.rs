@@ -22,7 +22,7 @@ fn model(tick: u64) -> LocalModel {
             normal: Vector3::z_axis(),
             anchor: Point3::origin(),
             stiffness: 300.0 + tick as f64,
-            drag: nalgebra::Vector3::zeros(),
+            drag: Vector3::zeros(),
         }),
         shaft_plane: None,
         kind: ForceModel::Geometric,

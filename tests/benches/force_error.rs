@@ -117,7 +117,7 @@ fn loop_on_its_thread() {
         normal: Vector3::z_axis(),
         anchor: Point3::new(0.0, 0.0, 0.01),
         stiffness: 100.0,
-        drag: nalgebra::Vector3::zeros(),
+        drag: Vector3::zeros(),
     };
     let axis: Unit<Vector3<f64>> = Vector3::z_axis();
     let device = ScriptedDevice::fixed(Point3::origin(), axis, 10.0, 1);

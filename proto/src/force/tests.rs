@@ -90,7 +90,7 @@ fn plane_force_grows_with_depth_and_stiffness_and_points_out() {
         normal: Unit::new_normalize(Vector3::new(0.0, 0.0, 1.0)),
         anchor: Point3::origin(),
         stiffness: 200.0,
-        drag: nalgebra::Vector3::zeros(),
+        drag: Vector3::zeros(),
     };
     assert_eq!(
         plane_force(&plane, &Point3::new(0.1, 0.0, 0.01)),
@@ -102,7 +102,7 @@ fn plane_force_grows_with_depth_and_stiffness_and_points_out() {
     assert!((f2 - f1 * 2.0).norm() < 1e-12);
     let stiffer = Plane {
         stiffness: 400.0,
-        drag: nalgebra::Vector3::zeros(),
+        drag: Vector3::zeros(),
         ..plane
     };
     assert!((plane_force(&stiffer, &Point3::new(0.0, 0.0, -0.01)) - f1 * 2.0).norm() < 1e-12);
@@ -137,13 +137,13 @@ fn two_plane_model() -> LocalModel {
             normal: z_up(),
             anchor: Point3::new(0.0, 0.0, 0.002),
             stiffness: 100.0,
-            drag: nalgebra::Vector3::zeros(),
+            drag: Vector3::zeros(),
         }),
         shaft_plane: Some(Plane {
             normal: x,
             anchor: Point3::new(0.003, 0.0, 0.05),
             stiffness: 300.0,
-            drag: nalgebra::Vector3::zeros(),
+            drag: Vector3::zeros(),
         }),
         young_modulus: Some(4500.0),
         kind: ForceModel::Calibrated,

@@ -22,7 +22,7 @@ fn plane(normal: [f64; 3], anchor: [f64; 3], stiffness: f64) -> Plane {
         normal: Unit::new_normalize(Vector3::from(normal)),
         anchor: Point3::from(anchor),
         stiffness,
-        drag: nalgebra::Vector3::zeros(),
+        drag: Vector3::zeros(),
     }
 }
 
@@ -173,7 +173,7 @@ fn force_steps_per_tick_are_bounded_by_the_transition() {
                 normal: Unit::new_normalize(normal),
                 anchor: Point3::from(*anchor),
                 stiffness: *stiffness,
-                drag: nalgebra::Vector3::zeros(),
+                drag: Vector3::zeros(),
             });
             if let Some(p) = &tip_plane {
                 lambda_max = lambda_max.max(p.stiffness);

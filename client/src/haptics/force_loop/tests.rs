@@ -16,7 +16,7 @@ fn tissue(stiffness: f64) -> LocalModel {
             normal: Vector3::z_axis(),
             anchor: Point3::origin(),
             stiffness,
-            drag: nalgebra::Vector3::zeros(),
+            drag: Vector3::zeros(),
         }),
         shaft_plane: None,
         kind: ForceModel::Geometric,

@@ -234,7 +234,7 @@ fn a_shaft_is_drawn_along_any_axis_and_a_shaft_force_from_where_it_applies() {
                 normal,
                 anchor: q + normal.into_inner() * 0.003,
                 stiffness: 400.0,
-                drag: nalgebra::Vector3::zeros(),
+                drag: Vector3::zeros(),
             }),
             ..laparo_proto::force::LocalModel::free(1, 0.1, tip, Unit::new_normalize(axis))
         };
