@@ -237,16 +237,12 @@ impl LocalModelStage {
                     _ => tip.material(),
                 };
                 let k_geo = stiffness::geometric_tip(r, material);
-                let (lambda, depth, n) = match self.kind {
-                    ForceModel::Geometric => (k_geo, tip.indentation, n),
+                let (lambda, depth, drag) = match self.kind {
+                    ForceModel::Geometric => (k_geo, tip.indentation, Vector3::zeros()),
                     ForceModel::Calibrated => {
                         let (lambda, depth) = calibration.tip.fit(tip.sample(&n), k_geo);
-                        (lambda, depth, n)
+                        (lambda, depth, tip.drag(&n))
                     }
-                };
-                let drag = match self.kind {
-                    ForceModel::Calibrated if tip.count > 0 => tip.drag(&n),
-                    _ => Vector3::zeros(),
                 };
                 model.young_modulus = Some(material.0);
                 // Holding tissue: out by the indentation. Holding nothing (touching
@@ -273,16 +269,12 @@ impl LocalModelStage {
                 let material = shaft.material();
                 let (level, contact_length) = shaft.footprint();
                 let k_geo = stiffness::geometric_shaft(r, contact_length, material);
-                let (lambda, depth, n) = match self.kind {
-                    ForceModel::Geometric => (k_geo, shaft.indentation, n),
+                let (lambda, depth, drag) = match self.kind {
+                    ForceModel::Geometric => (k_geo, shaft.indentation, Vector3::zeros()),
                     ForceModel::Calibrated => {
                         let (lambda, depth) = calibration.shaft.fit(shaft.sample(&n), k_geo);
-                        (lambda, depth, n)
+                        (lambda, depth, shaft.drag(&n))
                     }
-                };
-                let drag = match self.kind {
-                    ForceModel::Calibrated => shaft.drag(&n),
-                    _ => Vector3::zeros(),
                 };
                 let level = level.clamp(0.0, ins.length);
                 let e = if tip.count > 0 {
@@ -415,7 +407,8 @@ impl Held {
         }
     }
 
-    /// The drag: the reaction's part along the plane, orthogonal to `n`, N.
+    /// The drag: the reaction's part along the plane, orthogonal to `n`, N (zero while
+    /// nothing is held).
     fn drag(&self, n: &Unit<Vector3<f64>>) -> Vector3<f64> {
         self.reaction - n.into_inner() * self.reaction.dot(n)
     }
