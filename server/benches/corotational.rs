@@ -28,7 +28,13 @@
 //! liver-300k's ticks take seconds, so it is not run unless asked.
 //!
 //! Each model runs with both CG preconditioners (`[mechanics] preconditioner`:
-//! block Jacobi and smoothed-aggregation multigrid).
+//! block Jacobi and smoothed-aggregation multigrid). The corotational model runs
+//! twice with each: keeping an element's share of `K̂` until it has turned by
+//! [`TANGENT_TURN`] (the default), then reassembling every element that turned at
+//! all ("exact tangent"). For each pair the kept-tangent row adds the median share
+//! of elements reassembled per tick and how far its final state lies from the exact
+//! tangent's, `max_i |x_i − x_i^exact| / max_i |u_i^exact|`, and its reaction's
+//! relative difference.
 
 mod common;
 
@@ -42,7 +48,7 @@ use std::time::Instant;
 use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::elastic::Formulation;
+use laparo_server::engine::elastic::{Formulation, TANGENT_TURN};
 use laparo_server::engine::integrate::{Integrator, IntegratorKind, PreconditionerKind};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Unit, Vector3};
@@ -56,27 +62,38 @@ const GAP: f64 = 0.002;
 
 fn main() {
     println!(
-        "| mesh | tetrahedra | model | preconditioner | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | max displacement (mm) | instrument force (N) | relative error vs static |"
+        "| mesh | tetrahedra | model | preconditioner | tangent | median tick (ms) | ticks/s | median elastic step (ms) | CG its/tick | corotational update (ms) | shares reassembled per tick | max displacement (mm) | instrument force (N) | relative error vs static | vs exact tangent: state, force |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let labels = requested_labels(&["sofa-liver", "liver-20k", "liver-80k"]);
     for case in meshes(&labels) {
-        let runs = [Formulation::Linear, Formulation::Corotational]
+        let runs = [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg]
             .into_iter()
-            .flat_map(|m| {
-                [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg].map(|p| (m, p))
+            .flat_map(|p| {
+                [
+                    (Formulation::Linear, p, None),
+                    (Formulation::Corotational, p, Some(0.0)),
+                    (Formulation::Corotational, p, Some(kept_turn())),
+                ]
             });
-        for (model, preconditioner) in runs {
+        // The exact tangent's final positions and reaction, for the kept-tangent run
+        // that follows it.
+        let mut exact = None;
+        for (model, preconditioner, turn) in runs {
             let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
             scene.material.model = model;
             scene.mechanics.preconditioner = preconditioner;
             let mut sim = build(&scene);
+            if let Some(turn) = turn {
+                sim.integrator.set_tangent_turn(turn);
+            }
             for _ in 0..SETTLE_TICKS {
                 sim.tick();
             }
             let start = front_point(&sim) + Vector3::z() * GAP;
             let axis = Unit::new_normalize(Vector3::z());
             let (mut ticks, mut elastic, mut cg) = (Vec::new(), Vec::new(), Vec::new());
+            let mut shares = Vec::new();
             let mut starts = Vec::new();
             for k in 0..PRESS_TICKS + HOLD_TICKS {
                 starts.push(sim.state.x.clone());
@@ -88,17 +105,20 @@ fn main() {
                 ticks.push(since(t) * 1e3);
                 elastic.push(sim.last_timing.elastic_step * 1e3);
                 cg.push(report.cg_iterations as f64);
+                shares
+                    .push(sim.integrator.tangent_reassembled() as f64 / sim.mesh.tets.len() as f64);
             }
             let update = match sim.model.corotated() {
                 Some(mut c) => {
                     let mut out = vec![Vector3::zeros(); sim.model.vertex_count()];
                     // The first call starts from rest rotations: not timed.
-                    c.update(&sim.model, &starts[0], &mut out);
+                    let turn = turn.unwrap_or(0.0);
+                    c.update_tangent_within(&sim.model, &starts[0], &mut out, turn);
                     let mut times: Vec<f64> = starts[1..]
                         .iter()
                         .map(|x| {
                             let t = Instant::now();
-                            c.update(&sim.model, x, &mut out);
+                            c.update_tangent_within(&sim.model, x, &mut out, turn);
                             since(t) * 1e3
                         })
                         .collect();
@@ -108,8 +128,35 @@ fn main() {
             };
             let tick = median(&mut ticks);
             let error = error_against_static(&sim);
+            let reaction = sim.instruments[0].report.reaction;
+            let (tangent, shares, versus) = match turn {
+                None => ("—".to_string(), "—".to_string(), "—".to_string()),
+                Some(t) if t == 0.0 => {
+                    exact = Some((sim.state.x.clone(), reaction));
+                    ("exact".to_string(), "—".to_string(), "—".to_string())
+                }
+                Some(t) => {
+                    let versus = exact.take().map_or("—".to_string(), |(x, f)| {
+                        let scale = x
+                            .iter()
+                            .zip(&sim.model.rest)
+                            .map(|(x, r)| (x - r).norm())
+                            .fold(0.0, f64::max);
+                        format!(
+                            "{:.1e}, {:.1e}",
+                            max_distance(&sim.state.x, &x) / scale,
+                            (reaction - f).norm() / f.norm()
+                        )
+                    });
+                    (
+                        format!("kept to {t:.0e} rad"),
+                        format!("{:.1}%", 100.0 * median(&mut shares)),
+                        versus,
+                    )
+                }
+            };
             println!(
-                "| {} | {} | {:?} | {preconditioner:?} | {:.3} | {:.0} | {:.3} | {:.0} | {} | {:.2} | {:.3} | {:.1e} |",
+                "| {} | {} | {:?} | {preconditioner:?} | {tangent} | {:.3} | {:.0} | {:.3} | {:.0} | {} | {shares} | {:.2} | {:.3} | {:.1e} | {versus} |",
                 case.label,
                 sim.mesh.tets.len(),
                 model,
@@ -119,11 +166,19 @@ fn main() {
                 median(&mut cg),
                 update,
                 sim.max_displacement() * 1e3,
-                sim.instruments[0].report.reaction.norm(),
+                reaction.norm(),
                 error,
             );
         }
     }
+}
+
+/// [`TANGENT_TURN`], or `LAPARO_TANGENT_TURN` (rad) to measure another.
+fn kept_turn() -> f64 {
+    std::env::var("LAPARO_TANGENT_TURN")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(TANGENT_TURN)
 }
 
 /// `max_i |x_i − x_i^static| / max_i |u_i^static|` of `sim`'s state against the

@@ -21,7 +21,7 @@ pub mod rotation;
 mod stress;
 
 pub use assemble::{shape_gradients, tet_stiffness};
-pub use corotational::{Corotated, Element, VertexElements};
+pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
 pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
 
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -432,3 +432,5 @@ impl ElasticModel {
 mod tests;
 #[cfg(test)]
 mod tests_corotational;
+#[cfg(test)]
+mod tests_tangent;

@@ -47,7 +47,7 @@ pub(super) fn step(
     let corotational = it.corotated.is_some();
     let k = match &mut it.corotated {
         Some(c) => {
-            c.update(model, &state.x, &mut it.f);
+            c.update_tangent_within(model, &state.x, &mut it.f, it.tangent_turn);
             &c.tangent
         }
         None => {

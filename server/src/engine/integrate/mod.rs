@@ -35,7 +35,7 @@ use std::sync::atomic::AtomicBool;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::elastic::{BlockMatrix, Corotated, ElasticModel};
+use super::elastic::{BlockMatrix, Corotated, ElasticModel, TANGENT_TURN};
 
 /// The deformable body's state.
 #[derive(Clone, Debug)]
@@ -152,6 +152,9 @@ pub struct Integrator {
     /// The rotations, rotated stiffness `K̂` and offset `o` of a corotational model
     /// (`None` for a linear one): every `K u` of the linear model reads `K̂ u + o`.
     corotated: Option<Corotated>,
+    /// The turn below which the implicit and explicit steps keep an element's share
+    /// of `K̂` (rad, [`TANGENT_TURN`] unless set).
+    tangent_turn: f64,
 }
 
 impl Integrator {
@@ -172,6 +175,7 @@ impl Integrator {
             amg_failed: None,
             interrupt: Interrupt::default(),
             corotated: model.corotated(),
+            tangent_turn: TANGENT_TURN,
         }
     }
 
@@ -179,8 +183,22 @@ impl Integrator {
     /// them (for the substeps of a tick); nothing for a linear model.
     fn freeze_rotations(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         if let Some(c) = &mut self.corotated {
-            c.update(model, x, &mut self.f);
+            c.update_tangent_within(model, x, &mut self.f, self.tangent_turn);
         }
+    }
+
+    /// Sets the turn (rad, at least 0; [`TANGENT_TURN`] by default) below which the
+    /// implicit and explicit steps keep an element's share of the corotational
+    /// tangent `K̂`: 0 reassembles all of it every step.
+    /// Static solves always reassemble all of it.
+    pub fn set_tangent_turn(&mut self, turn: f64) {
+        self.tangent_turn = turn.max(0.0);
+    }
+
+    /// How many elements' shares of the corotational tangent the last step
+    /// assembled (0 for a linear model).
+    pub fn tangent_reassembled(&self) -> usize {
+        self.corotated.as_ref().map_or(0, Corotated::reassembled)
     }
 
     /// `f = K u` (linear) or `f = Σ_e R_e K_e (R_eᵀ x_e − X_e)` with the rotations
