@@ -30,7 +30,9 @@
 //!
 //! `LAPARO_CONTACT_SETTLE=0` runs every case with the scene's `contact.settle` off (the
 //! free tissue around the stage's jumps not settled with them; on by default), to
-//! compare with the default back to back.
+//! compare with the default back to back. `LAPARO_CONTACT_MODEL=linear` runs them with
+//! the linear elastic model (the livers' default is corotational), to compare with
+//! a build from before the corotational model.
 //!
 //! Table 2, both instruments tip-first (axis +z) at x = −0.02 and +0.02: the whole
 //! replayed tick, its contact part, share = median contact / median whole tick, and
@@ -48,6 +50,7 @@ use std::time::Instant;
 use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::elastic::Formulation;
 use laparo_server::engine::integrate::StepReport;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::{Simulation, TickTiming};
@@ -222,6 +225,9 @@ fn settled(file: &str) -> Simulation {
     scene.mesh.file = file.to_string();
     if std::env::var_os("LAPARO_CONTACT_SETTLE").is_some_and(|v| v == "0") {
         scene.contact.settle = false;
+    }
+    if std::env::var_os("LAPARO_CONTACT_MODEL").is_some_and(|v| v == "linear") {
+        scene.material.model = Formulation::Linear;
     }
     let mut sim = build(&scene);
     for _ in 0..60 {
