@@ -131,7 +131,7 @@ fn main() {
             let reaction = sim.instruments[0].report.reaction;
             let (tangent, shares, versus) = match turn {
                 None => ("—".to_string(), "—".to_string(), "—".to_string()),
-                Some(t) if t == 0.0 => {
+                Some(0.0) => {
                     exact = Some((sim.state.x.clone(), reaction));
                     ("exact".to_string(), "—".to_string(), "—".to_string())
                 }

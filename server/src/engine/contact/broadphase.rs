@@ -7,6 +7,17 @@
 //! triangle whose swept box meets it, so a fast instrument or a fast-moving liver cannot
 //! slip between two ticks unseen.
 //!
+//! The leaves are loose, so that a tick does not box every triangle again. Each
+//! surface vertex keeps a box `B_v` around its sweep `S_v` (the box of its previous and
+//! current positions) with `S_v ⊆ B_v ⊆ S_v ⊕ 2m`, `⊕` growing a box by a margin on
+//! every side and `m` a quarter of the mean surface edge ([`BroadPhase::margin`]); a
+//! triangle's leaf is the union of its vertices' `B_v`. An update checks the
+//! invariant vertex by vertex and, where it fails, sets `B_v = S_v ⊕ m` and refits the
+//! triangles around `v` alone: tissue that did not move costs one check per vertex.
+//! So a leaf holds its triangle's swept box (no triangle that meets a query is
+//! missed) and lies within `2m` of it (a query returns only triangles whose swept box
+//! comes within `2m` of it; the narrow phase tests the geometry itself).
+//!
 //! parry speaks glam; positions are converted here, at the module's edge.
 
 use nalgebra::Point3;
@@ -52,6 +63,12 @@ impl Box3 {
         (0..3).all(|a| self.min[a] <= other.max[a] && other.min[a] <= self.max[a])
     }
 
+    /// Whether `other` lies inside this box (closed boxes: touching counts; an empty
+    /// `other` lies inside any box).
+    pub fn contains(&self, other: &Box3) -> bool {
+        (0..3).all(|a| self.min[a] <= other.min[a] && other.max[a] <= self.max[a])
+    }
+
     fn to_parry(self) -> Aabb {
         Aabb::new(
             GVec::new(self.min.x, self.min.y, self.min.z),
@@ -60,59 +77,118 @@ impl Box3 {
     }
 }
 
-/// The BVH over the surface triangles' swept boxes.
+/// The BVH over the surface triangles' swept boxes, loosened by up to `2m`.
 pub struct BroadPhase {
     bvh: Bvh,
     workspace: BvhWorkspace,
+    /// `m`, m.
+    margin: f64,
+    /// `B_v` of each vertex, by mesh index (empty boxes off the surface).
+    loose: Vec<Box3>,
+    /// Triangles to refit in this update, and a mark per triangle against repeats.
+    refit: Vec<u32>,
+    marked: Vec<bool>,
 }
 
 impl std::fmt::Debug for BroadPhase {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("BroadPhase")
             .field("leaves", &self.bvh.leaf_count())
+            .field("margin", &self.margin)
             .finish()
     }
 }
 
-/// The box swept by triangle `t` between two position sets.
-fn swept_box(
-    surface: &Surface,
-    t: usize,
-    previous: &[Point3<f64>],
-    current: &[Point3<f64>],
-) -> Box3 {
-    let mut b = Box3::empty();
-    for &v in &surface.triangles[t] {
-        b.cover(&previous[v as usize]);
-        b.cover(&current[v as usize]);
+/// The smallest box holding the three.
+fn union(boxes: [Box3; 3]) -> Box3 {
+    let [a, b, c] = boxes;
+    Box3 {
+        min: a.min.inf(&b.min).inf(&c.min),
+        max: a.max.sup(&b.max).sup(&c.max),
     }
-    b
 }
 
 impl BroadPhase {
     /// Builds the hierarchy over the surface at rest.
     pub fn new(surface: &Surface, positions: &[Point3<f64>]) -> Self {
-        let leaves: Vec<Aabb> = (0..surface.triangles.len())
-            .map(|t| swept_box(surface, t, positions, positions).to_parry())
+        let (mut length, mut count) = (0.0, 0usize);
+        for &[a, b] in &surface.edges {
+            let d = (positions[a as usize] - positions[b as usize]).norm();
+            if d.is_finite() {
+                length += d;
+                count += 1;
+            }
+        }
+        let margin = 0.25 * length / count.max(1) as f64;
+        let mut loose = vec![Box3::empty(); positions.len()];
+        for &v in &surface.vertices {
+            let p = positions[v as usize];
+            loose[v as usize] = Box3 { min: p, max: p }.inflated(margin);
+        }
+        let leaves: Vec<Aabb> = surface
+            .triangles
+            .iter()
+            .map(|t| union(t.map(|v| loose[v as usize])).to_parry())
             .collect();
         let mut bp = BroadPhase {
             bvh: Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves),
             workspace: BvhWorkspace::default(),
+            margin,
+            loose,
+            refit: Vec::with_capacity(surface.triangles.len()),
+            marked: vec![false; surface.triangles.len()],
         };
         // The first refit sizes the workspace, so later ones do not allocate.
         bp.bvh.refit(&mut bp.workspace);
         bp
     }
 
-    /// Refits every leaf to its triangle's sweep from `previous` to `current`.
-    pub fn update(&mut self, surface: &Surface, previous: &[Point3<f64>], current: &[Point3<f64>]) {
-        for t in 0..surface.triangles.len() {
-            let b = swept_box(surface, t, previous, current).to_parry();
-            self.bvh.insert_or_update_partially(b, t as u32, 0.0);
+    /// `m`: how far a vertex's sweep may move inside its box before the triangles
+    /// around it are refitted, m. A quarter of the mean surface edge, so that the
+    /// extra triangles a query returns lie within half an edge of it.
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
+    /// Makes every leaf hold its triangle's sweep from `previous` to `current` (and
+    /// lie within `2m` of it), refitting only the triangles around the vertices whose
+    /// sweep left their box or shrank well inside it. Returns how many triangles it
+    /// refitted.
+    pub fn update(
+        &mut self,
+        surface: &Surface,
+        previous: &[Point3<f64>],
+        current: &[Point3<f64>],
+    ) -> usize {
+        self.refit.clear();
+        for (slot, &v) in surface.vertices.iter().enumerate() {
+            let vi = v as usize;
+            let mut sweep = Box3::empty();
+            sweep.cover(&previous[vi]);
+            sweep.cover(&current[vi]);
+            let b = &mut self.loose[vi];
+            if b.contains(&sweep) && sweep.inflated(2.0 * self.margin).contains(b) {
+                continue;
+            }
+            *b = sweep.inflated(self.margin);
+            for &t in surface.triangles_around(slot) {
+                if !self.marked[t as usize] {
+                    self.marked[t as usize] = true;
+                    self.refit.push(t);
+                }
+            }
         }
-        // The tree's shape is kept and only its boxes refitted: cheaper than `refit`,
-        // which also reorders the nodes in memory.
-        self.bvh.refit_without_opt();
+        for &t in &self.refit {
+            self.marked[t as usize] = false;
+            let b = union(surface.triangles[t as usize].map(|v| self.loose[v as usize]));
+            self.bvh.insert_or_update_partially(b.to_parry(), t, 0.0);
+        }
+        if !self.refit.is_empty() {
+            // The tree's shape is kept and only its boxes refitted: cheaper than
+            // `refit`, which also reorders the nodes in memory.
+            self.bvh.refit_without_opt();
+        }
+        self.refit.len()
     }
 
     /// Appends to `out` the triangles whose swept box meets `query`.
@@ -124,35 +200,95 @@ impl BroadPhase {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Vector3;
+
     use super::*;
     use crate::engine::testing::liver_mesh;
 
+    /// The box swept by triangle `t` between two position sets.
+    fn swept_box(
+        surface: &Surface,
+        t: usize,
+        previous: &[Point3<f64>],
+        current: &[Point3<f64>],
+    ) -> Box3 {
+        let mut b = Box3::empty();
+        for &v in &surface.triangles[t] {
+            b.cover(&previous[v as usize]);
+            b.cover(&current[v as usize]);
+        }
+        b
+    }
+
     #[test]
-    fn query_finds_exactly_the_triangles_whose_swept_box_meets_it() {
+    fn a_query_finds_every_swept_triangle_and_none_beyond_twice_the_margin() {
+        // Through still, slow, fast and jittered motions, a query returns every
+        // triangle whose swept box meets it, and only triangles whose swept box meets
+        // it grown by 2m; a motion within the margin refits nothing, a large one every
+        // triangle.
         let mesh = liver_mesh();
         let rest = mesh.positions.clone();
-        let moved: Vec<_> = rest
-            .iter()
-            .map(|p| p + nalgebra::Vector3::new(0.3, -0.2, 0.1))
-            .collect();
         let mut bp = BroadPhase::new(&mesh.surface, &rest);
-        bp.update(&mesh.surface, &rest, &moved);
+        let m = bp.margin();
+        assert!(m > 0.0);
+        let shifted =
+            |d: Vector3<f64>| -> Vec<Point3<f64>> { rest.iter().map(|p| p + d).collect() };
+        let jittered: Vec<_> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| p + Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3) * m)
+            .collect();
+        let steps = [
+            (rest.clone(), rest.clone(), Some(0)),
+            (
+                rest.clone(),
+                shifted(Vector3::new(0.3, 0.0, 0.0) * m),
+                Some(0),
+            ),
+            (rest.clone(), shifted(Vector3::new(0.3, -0.2, 0.1)), None),
+            (shifted(Vector3::new(0.3, -0.2, 0.1)), rest.clone(), None),
+            (rest.clone(), jittered.clone(), None),
+            (jittered, rest.clone(), None),
+            (rest.clone(), rest.clone(), None),
+        ];
         let (lo, hi) = mesh.bounding_box();
-        for k in 0..20 {
-            let f = k as f64 / 20.0;
-            let c = lo + (hi - lo) * f;
-            let query = Box3 {
-                min: c,
-                max: c + nalgebra::Vector3::new(0.5, 0.4, 0.6),
-            };
-            let mut found = Vec::new();
-            bp.query(&query, &mut found);
-            found.sort_unstable();
-            let brute: Vec<u32> = (0..mesh.surface.triangles.len())
-                .filter(|&t| swept_box(&mesh.surface, t, &rest, &moved).intersects(&query))
-                .map(|t| t as u32)
-                .collect();
-            assert_eq!(found, brute, "query {k}");
+        for (k, (previous, current, refitted)) in steps.iter().enumerate() {
+            let n = bp.update(&mesh.surface, previous, current);
+            if let Some(expected) = refitted {
+                assert_eq!(n, *expected, "step {k}");
+            }
+            if k == 2 {
+                assert_eq!(n, mesh.surface.triangles.len(), "a move of many edges");
+            }
+            for q in 0..20 {
+                let f = q as f64 / 20.0;
+                let c = lo + (hi - lo) * f;
+                let query = Box3 {
+                    min: c,
+                    max: c + Vector3::new(0.5, 0.4, 0.6),
+                };
+                let mut found = Vec::new();
+                bp.query(&query, &mut found);
+                found.sort_unstable();
+                let meets = |query: &Box3, t: usize| {
+                    swept_box(&mesh.surface, t, previous, current).intersects(query)
+                };
+                for t in 0..mesh.surface.triangles.len() {
+                    if meets(&query, t) {
+                        assert!(
+                            found.binary_search(&(t as u32)).is_ok(),
+                            "step {k}, query {q}: {t} missed"
+                        );
+                    }
+                }
+                let grown = query.inflated(2.0 * m * (1.0 + 1e-12));
+                for &t in &found {
+                    assert!(
+                        meets(&grown, t as usize),
+                        "step {k}, query {q}: {t} too far"
+                    );
+                }
+            }
         }
     }
 }
