@@ -428,26 +428,15 @@ impl Corotated {
     /// writes `out = K̂ u + o = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic
     /// force at `x` (N), which is kept with `x` for [`row`](Self::row).
     pub fn update(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
-        out.iter_mut().for_each(|o| *o = Vector3::zeros());
         self.tangent
             .block
             .iter_mut()
             .for_each(|b| *b = Matrix3::zeros());
-        for ((e, q), qa) in model
-            .elements
-            .iter()
-            .zip(&mut self.rotation)
-            .zip(&mut self.assembled)
-        {
-            let f = e.deformation_gradient(x);
-            let p = polar(&f, q, WARM_ITERATIONS);
-            e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
+        self.update_with(model, x, out, |e, q, qa, blocks| {
             *qa = *q;
-            e.add_blocks(q.to_rotation_matrix().matrix(), &mut self.tangent.block);
-        }
-        self.reassembled = model.elements.len();
-        self.at.copy_from_slice(x);
-        self.force_at.copy_from_slice(out);
+            e.add_blocks(q.to_rotation_matrix().matrix(), blocks);
+            true
+        });
     }
 
     /// As [`update`](Self::update), but the share of `K̂` of an element that has
@@ -470,8 +459,36 @@ impl Corotated {
         }
         // |q · q′| = cos(θ/2) for the turn θ between the rotations q and q′.
         let cos_half = (0.5 * turn).cos();
-        let mut reassembled = 0;
+        self.update_with(model, x, out, |e, q, qa, blocks| {
+            if q.coords.dot(&qa.coords).abs() >= cos_half {
+                return false;
+            }
+            let (old, new) = (qa.to_rotation_matrix(), q.to_rotation_matrix());
+            e.replace_blocks(old.matrix(), new.matrix(), blocks);
+            *qa = *q;
+            true
+        });
+    }
+
+    /// The pass both updates make: each element's rotation extracted (warm-started)
+    /// and its force added to `out`, then `tangent(element, rotation, assembled
+    /// rotation, K̂'s blocks)`, which says whether it assembled the element's share;
+    /// `x` and `out` kept for [`row`](Self::row).
+    #[inline]
+    fn update_with(
+        &mut self,
+        model: &ElasticModel,
+        x: &[Point3<f64>],
+        out: &mut [Vector3<f64>],
+        mut tangent: impl FnMut(
+            &Element,
+            &UnitQuaternion<f64>,
+            &mut UnitQuaternion<f64>,
+            &mut [Matrix3<f64>],
+        ) -> bool,
+    ) {
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
+        let mut reassembled = 0;
         for ((e, q), qa) in model
             .elements
             .iter()
@@ -481,13 +498,7 @@ impl Corotated {
             let f = e.deformation_gradient(x);
             let p = polar(&f, q, WARM_ITERATIONS);
             e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
-            if q.coords.dot(&qa.coords).abs() < cos_half {
-                e.replace_blocks(
-                    qa.to_rotation_matrix().matrix(),
-                    q.to_rotation_matrix().matrix(),
-                    &mut self.tangent.block,
-                );
-                *qa = *q;
+            if tangent(e, q, qa, &mut self.tangent.block) {
                 reassembled += 1;
             }
         }

@@ -7,7 +7,7 @@ use super::*;
 use crate::engine::material::Material;
 use crate::engine::testing::liver_mesh;
 
-fn models(mesh: &TetMesh, nu: f64) -> (ElasticModel, ElasticModel) {
+pub(super) fn models(mesh: &TetMesh, nu: f64) -> (ElasticModel, ElasticModel) {
     let mat = Material {
         young_modulus: 3000.0,
         poisson_ratio: nu,
@@ -58,6 +58,34 @@ fn turned(mesh: &TetMesh, turn: Vector3<f64>, scale: f64) -> Vec<Point3<f64>> {
         .iter()
         .map(|p| q * (p + wobble(p, scale)))
         .collect()
+}
+
+/// `Σ_e R_e K_e R_eᵀ` with `rotation(e)`, built from the element tensors of the
+/// turned rest shape `R_e X` (independent of the model's own assembly).
+pub(super) fn tangent_at(
+    mesh: &TetMesh,
+    model: &ElasticModel,
+    rotation: impl Fn(usize) -> nalgebra::Matrix3<f64>,
+) -> BlockMatrix {
+    let mut expected = BlockMatrix::with_pattern(mesh.vertex_count(), &mesh.edges);
+    for (e, &t) in mesh.tets.iter().enumerate() {
+        let r = rotation(e);
+        let turned: Vec<_> = mesh
+            .positions
+            .iter()
+            .map(|p| Point3::from(r * p.coords))
+            .collect();
+        let (g, v) = shape_gradients(&turned, t);
+        let k = tet_stiffness(&g, v, &model.materials[0]);
+        for a in 0..4 {
+            for b in 0..4 {
+                if t[a] <= t[b] {
+                    expected.add(t[a], t[b], &k[a][b]);
+                }
+            }
+        }
+    }
+    expected
 }
 
 #[test]
@@ -123,24 +151,7 @@ fn rotated_tangent_and_offset_give_the_force() {
     for (i, f) in force.iter().enumerate() {
         assert!((c.row(i, &x) - f).norm() <= 1e-11 * scale, "row {i}");
     }
-    let mut expected = BlockMatrix::with_pattern(n, &mesh.edges);
-    for (e, &t) in mesh.tets.iter().enumerate() {
-        let r = c.rotation(e);
-        let turned: Vec<_> = mesh
-            .positions
-            .iter()
-            .map(|p| Point3::from(r * p.coords))
-            .collect();
-        let (g, v) = shape_gradients(&turned, t);
-        let k = tet_stiffness(&g, v, &model.materials[0]);
-        for a in 0..4 {
-            for b in 0..4 {
-                if t[a] <= t[b] {
-                    expected.add(t[a], t[b], &k[a][b]);
-                }
-            }
-        }
-    }
+    let expected = tangent_at(&mesh, &model, |e| c.rotation(e));
     let top = expected
         .block
         .iter()

@@ -3,8 +3,8 @@
 
 use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
 
+use super::tests_corotational::{models, tangent_at};
 use super::*;
-use crate::engine::material::Material;
 use crate::engine::testing::liver_mesh;
 
 /// The liver's rest points bent by an angle growing along x (`bend` rad per unit x)
@@ -20,34 +20,6 @@ fn bent(mesh: &TetMesh, bend: f64) -> Vec<Point3<f64>> {
         .collect()
 }
 
-/// `Σ_e R_e K_e R_eᵀ` with `rotation(e)`, built from the element tensors of the
-/// turned rest shape (independent of the model's own assembly).
-fn tangent_at(
-    mesh: &TetMesh,
-    model: &ElasticModel,
-    rotation: impl Fn(usize) -> nalgebra::Matrix3<f64>,
-) -> BlockMatrix {
-    let mut expected = BlockMatrix::with_pattern(mesh.vertex_count(), &mesh.edges);
-    for (e, &t) in mesh.tets.iter().enumerate() {
-        let r = rotation(e);
-        let turned: Vec<_> = mesh
-            .positions
-            .iter()
-            .map(|p| Point3::from(r * p.coords))
-            .collect();
-        let (g, v) = shape_gradients(&turned, t);
-        let k = tet_stiffness(&g, v, &model.materials[0]);
-        for a in 0..4 {
-            for b in 0..4 {
-                if t[a] <= t[b] {
-                    expected.add(t[a], t[b], &k[a][b]);
-                }
-            }
-        }
-    }
-    expected
-}
-
 fn largest_entry(m: &BlockMatrix) -> f64 {
     m.block.iter().map(|b| b.abs().max()).fold(0.0, f64::max)
 }
@@ -61,17 +33,7 @@ fn a_kept_tangent_is_the_sum_at_the_rotations_it_kept() {
     // the replacements), so within 2·turn of each element's stiffness of the exact
     // tangent.
     let mesh = liver_mesh();
-    let mat = Material {
-        young_modulus: 3000.0,
-        poisson_ratio: 0.45,
-        density: 1000.0,
-    };
-    let model = ElasticModel::with_formulation(
-        &mesh,
-        vec![mat],
-        vec![0; mesh.tets.len()],
-        Formulation::Corotational,
-    );
+    let (_, model) = models(&mesh, 0.45);
     let turn = 1e-3;
     // Σ ‖K_e‖_F over the elements that share each stored block.
     let rest = tangent_at(&mesh, &model, |_| nalgebra::Matrix3::identity());
