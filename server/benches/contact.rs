@@ -31,8 +31,9 @@
 //! `LAPARO_CONTACT_SETTLE=0` runs every case with the scene's `contact.settle` off (the
 //! free tissue around the stage's jumps not settled with them; on by default), to
 //! compare with the default back to back. `LAPARO_CONTACT_MODEL=linear` runs them with
-//! the linear elastic model (the livers' default is corotational), to compare with
-//! a build from before the corotational model.
+//! the linear elastic model (the livers' default is corotational) and
+//! `LAPARO_CONTACT_PRECONDITIONER=block-jacobi` with block Jacobi (multigrid is the
+//! default from 1,000 vertices), to compare with a build from before either.
 //!
 //! Table 2, both instruments tip-first (axis +z) at x = −0.02 and +0.02: the whole
 //! replayed tick, its contact part, share = median contact / median whole tick, and
@@ -51,7 +52,7 @@ use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::Formulation;
-use laparo_server::engine::integrate::StepReport;
+use laparo_server::engine::integrate::{PreconditionerKind, StepReport};
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::{Simulation, TickTiming};
 use nalgebra::{Point3, Unit, Vector3};
@@ -228,6 +229,9 @@ fn settled(file: &str) -> Simulation {
     }
     if std::env::var_os("LAPARO_CONTACT_MODEL").is_some_and(|v| v == "linear") {
         scene.material.model = Formulation::Linear;
+    }
+    if std::env::var_os("LAPARO_CONTACT_PRECONDITIONER").is_some_and(|v| v == "block-jacobi") {
+        scene.mechanics.preconditioner = PreconditionerKind::BlockJacobi;
     }
     let mut sim = build(&scene);
     for _ in 0..60 {
