@@ -359,7 +359,8 @@ pub(super) fn negated_force_on(
 /// `f₀ + K̂ (x − x₀)`, by at most 2e-3 of the force change over the tick; nothing
 /// changes at rest or at equilibrium, where `f₀` alone decides. `K̂` stays a sum of
 /// rotated `K_e`, so it stays symmetric positive semidefinite and under the explicit
-/// step's eigenvalue bound ([`max_eigenvalue_bound`]) as the exact one does.
+/// step's eigenvalue bound ([`ElasticModel::max_eigenvalue_bound`]) as the exact one
+/// does.
 ///
 /// Measured with the bench `corotational` (a 2 cm/s press, liver-20k): a fifth of
 /// the shares are reassembled per tick, the update takes 0.8 of the time, and the

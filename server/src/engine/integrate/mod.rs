@@ -179,8 +179,9 @@ impl Integrator {
         }
     }
 
-    /// Corotational: extracts the rotations at `x` and reassembles `K̂` and `o` with
-    /// them (for the substeps of a tick); nothing for a linear model.
+    /// Corotational: extracts the rotations at `x`, keeps the force there and brings
+    /// `K̂` to within [`TANGENT_TURN`] of them (for the substeps of a tick); nothing
+    /// for a linear model.
     fn freeze_rotations(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         if let Some(c) = &mut self.corotated {
             c.update_tangent_within(model, x, &mut self.f, self.tangent_turn);
