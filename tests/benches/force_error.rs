@@ -12,7 +12,9 @@
 //! mechanics rate, not from the local model. Then the loop on its own thread:
 //! achieved rate and period jitter.
 //!
-//! `cargo bench -p laparo-tests --bench force_error`
+//! `cargo bench -p laparo-tests --bench force_error` (`-- --mesh FILE` runs the probe
+//! on another liver with the default scene's settings, e.g.
+//! `server/meshes/liver-5k.msh`; `-- --trace RATE` prints the 1 kHz trace at one rate)
 
 use std::time::{Duration, Instant};
 
@@ -31,11 +33,39 @@ const DEPTH: f64 = 0.008;
 const SLIDE: f64 = 0.02;
 const REPEATS: usize = 5;
 
+/// The liver the probe runs on: `--mesh FILE` (a relative path from the workspace's
+/// root, where the README's commands run), else the default scene's. A missing
+/// argument or file ends the run with a message.
+fn mesh_file() -> Option<&'static str> {
+    static MESH: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
+    MESH.get_or_init(|| {
+        let args: Vec<String> = std::env::args().collect();
+        let k = args.iter().position(|a| a == "--mesh")?;
+        let Some(file) = args.get(k + 1) else {
+            eprintln!("--mesh takes a Gmsh file");
+            std::process::exit(2);
+        };
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let path = root.join(file);
+        if !path.is_file() {
+            eprintln!("--mesh {file}: no such file ({})", path.display());
+            std::process::exit(2);
+        }
+        Some(path.display().to_string())
+    })
+    .as_deref()
+}
+
 fn settled(rate_hz: f64, kind: ForceModelKind) -> Simulation {
     let mut scene = Scene::default_scene();
+    if let Some(file) = mesh_file() {
+        scene.mesh.file = file.to_string();
+    }
     scene.mechanics.rate_hz = rate_hz;
     scene.force_model.kind = kind;
-    let mut sim = scene.build().expect("the default scene builds");
+    let mut sim = scene
+        .build()
+        .expect("the default scene builds on the chosen liver");
     for _ in 0..rate_hz.round() as usize {
         sim.tick();
     }
@@ -209,7 +239,8 @@ fn main() {
     let rms_truth =
         (truth.iter().map(|f| f.norm_squared()).sum::<f64>() / truth.len() as f64).sqrt();
     println!(
-        "Probe of the default liver: {} mm past the surface, {} mm slide, axis through the trocar, {} s; reference reaction at 1 kHz: peak {:.3} N, RMS {:.3} N",
+        "Probe of {}: {} mm past the surface, {} mm slide, axis through the trocar, {} s; reference reaction at 1 kHz: peak {:.3} N, RMS {:.3} N",
+        mesh_file().unwrap_or("the default liver"),
         DEPTH * 1e3,
         SLIDE * 1e3,
         PROBE_SECONDS,
