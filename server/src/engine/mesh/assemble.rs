@@ -67,6 +67,7 @@ impl RawMesh {
         }
         let edges = topology::edges(&self.tets);
         Ok(TetMesh {
+            file_index: (0..n as u32).collect(),
             positions: self.positions,
             node_ids: self.node_ids,
             tets: self.tets,

@@ -4,7 +4,9 @@
 //!
 //! Conventions:
 //! - Vertices are indexed `0..n` in file order (the order of the `$NOD`/`$Nodes` block),
-//!   whatever ids the file gives them. `node_ids[i]` keeps the file's id.
+//!   whatever ids the file gives them, until [`TetMesh::renumbered`] gives them an order
+//!   with locality (`order`). `node_ids[i]` keeps the file's id and `file_index[i]`
+//!   the place in the file.
 //! - Every tetrahedron `[a, b, c, d]` is positively oriented after loading:
 //!   `(b − a) · ((c − a) × (d − a)) > 0`, i.e. six times its signed volume is positive.
 //! - Coordinates are in the file's units until [`TetMesh::scale`] maps them to metres.
@@ -18,12 +20,14 @@
 //!
 //! Files: `gmsh` parses the text, `topology` orients and builds edges and the surface
 //! (in indices), `assemble` runs the checks in order and names faults by file ids and
-//! lines, `error` defines the errors, `surface` the boundary surface and its normals.
+//! lines, `error` defines the errors, `surface` the boundary surface and its normals,
+//! `order` a vertex numbering with locality.
 
 mod assemble;
 mod error;
 pub mod generate;
 mod gmsh;
+mod order;
 mod surface;
 mod topology;
 
@@ -32,6 +36,7 @@ mod tests;
 
 pub use error::{BoundaryGap, MeshError, MeshErrorKind, NonManifold, OutOfRange, Syntax};
 pub use gmsh::{read_gmsh, read_gmsh_file};
+pub use order::reverse_cuthill_mckee;
 pub use surface::Surface;
 
 use nalgebra::Point3;
@@ -39,10 +44,14 @@ use nalgebra::Point3;
 /// A tetrahedral volume mesh with positively oriented elements.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TetMesh {
-    /// Rest positions, one per vertex, in file order.
+    /// Rest positions, one per vertex.
     pub positions: Vec<Point3<f64>>,
-    /// The file's id of each vertex (Gmsh node number), in file order.
+    /// The file's id of each vertex (Gmsh node number).
     pub node_ids: Vec<u64>,
+    /// Each vertex's index in the file's node list: `0..n` in order as read, another
+    /// permutation after [`TetMesh::renumbered`] (how scenes' `fixed.nodes`, given in
+    /// file order, find their vertices).
+    pub file_index: Vec<u32>,
     /// Tetrahedra as vertex indices, each positively oriented.
     pub tets: Vec<[u32; 4]>,
     /// The physical tag of each tetrahedron (Gmsh "reg-phys" in v1, first tag in v2.2);

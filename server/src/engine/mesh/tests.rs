@@ -336,3 +336,4 @@ mod data_sets;
 mod file_faults;
 mod generated;
 mod geometry_faults;
+mod order;
