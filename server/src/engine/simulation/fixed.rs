@@ -10,6 +10,11 @@ pub(super) fn fixed_vertices(scene: &Scene, mesh: &TetMesh) -> Result<Vec<u32>, 
     let spec = &scene.fixed;
     let n = mesh.vertex_count();
     let mut fixed = Vec::new();
+    // `fixed.nodes` counts in file order; the mesh may have been renumbered.
+    let mut vertex_of = vec![0u32; n];
+    for (v, &i) in mesh.file_index.iter().enumerate() {
+        vertex_of[i as usize] = v as u32;
+    }
     for (k, &i) in spec.nodes.iter().enumerate() {
         if i as usize >= n {
             return Err(scene.invalid(
@@ -19,7 +24,7 @@ pub(super) fn fixed_vertices(scene: &Scene, mesh: &TetMesh) -> Result<Vec<u32>, 
                 ),
             ));
         }
-        fixed.push(i);
+        fixed.push(vertex_of[i as usize]);
     }
     for (k, b) in spec.boxes.iter().enumerate() {
         let before = fixed.len();

@@ -109,3 +109,4 @@ fn regions_get_their_own_material() {
 }
 
 mod local_models;
+mod renumbered;
