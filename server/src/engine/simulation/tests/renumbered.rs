@@ -35,15 +35,8 @@ fn a_renumbered_liver_holds_and_moves_as_the_file_numbered_one() {
         a.tick();
         b.tick();
     }
-    let front = a
-        .mesh
-        .surface
-        .vertices
-        .iter()
-        .map(|&v| a.state.x[v as usize])
-        .filter(|p| p.x.abs() < 0.03 && p.y.abs() < 0.02)
-        .max_by(|p, q| p.z.total_cmp(&q.z))
-        .unwrap();
+    // The liver's foremost point (largest z), pressed straight in.
+    let front = *a.state.x.iter().max_by(|p, q| p.z.total_cmp(&q.z)).unwrap();
     let axis = Unit::new_normalize(Vector3::z());
     for k in 0..45 {
         let depth = 0.008 * (k.min(30) as f64 / 30.0) - 0.002;
