@@ -11,19 +11,22 @@
 //! increasing degree, which keeps every edge's two indices close (the bandwidth of
 //! the vertex graph is small) and therefore each element's vertices, and each row's
 //! neighbours, within a few cache lines of one another. Reversing the order (George,
-//! 1971) changes no bandwidth but less fill for factorisations; it is the customary
-//! form.
+//! 1971) keeps the bandwidth and gives less fill in factorisations; it is the
+//! customary form.
 
 /// The new index of each vertex (`new[old]`), a permutation of `0..vertex_count`,
-/// from reverse Cuthill–McKee over the edges of `tets`. Each connected component is
+/// from reverse Cuthill–McKee over the graph of `edges` (a mesh's [`edges`], each
+/// `[i, j]` with `i < j`, sorted and unique). Each connected component is
 /// numbered from a pseudo-peripheral vertex (the George–Liu search: from a vertex of
 /// least degree, move to a least-degree vertex of the last breadth-first level while
 /// that level's depth grows); a vertex that no tetrahedron uses is a component of its
 /// own. Deterministic: ties go to the lower old index.
 ///
-/// Every index in `tets` must be below `vertex_count`.
-pub fn reverse_cuthill_mckee(vertex_count: usize, tets: &[[u32; 4]]) -> Vec<u32> {
-    let graph = Graph::of_tets(vertex_count, tets);
+/// Every index in `edges` must be below `vertex_count`.
+///
+/// [`edges`]: super::TetMesh::edges
+pub fn reverse_cuthill_mckee(vertex_count: usize, edges: &[[u32; 2]]) -> Vec<u32> {
+    let graph = Graph::of_edges(vertex_count, edges);
     let mut order: Vec<u32> = Vec::with_capacity(vertex_count);
     let mut placed = vec![false; vertex_count];
     let mut levels = Levels::default();
@@ -66,27 +69,26 @@ struct Graph {
 }
 
 impl Graph {
-    fn of_tets(vertex_count: usize, tets: &[[u32; 4]]) -> Self {
-        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(tets.len() * 12);
-        for t in tets {
-            for a in 0..4 {
-                for b in 0..4 {
-                    if a != b {
-                        pairs.push((t[a], t[b]));
-                    }
-                }
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
+    /// Both directions of each edge; a row lists its neighbours in ascending order
+    /// because `edges` is sorted: row `v` receives the `w < v` of edges `[w, v]` in
+    /// order of `w`, all before the edges `[v, w]` that bring the `w > v`.
+    fn of_edges(vertex_count: usize, edges: &[[u32; 2]]) -> Self {
         let mut offsets = vec![0usize; vertex_count + 1];
-        for &(a, _) in &pairs {
+        for &[a, b] in edges {
             offsets[a as usize + 1] += 1;
+            offsets[b as usize + 1] += 1;
         }
         for k in 0..vertex_count {
             offsets[k + 1] += offsets[k];
         }
-        let targets = pairs.into_iter().map(|(_, b)| b).collect();
+        let mut fill = offsets.clone();
+        let mut targets = vec![0u32; 2 * edges.len()];
+        for &[a, b] in edges {
+            targets[fill[a as usize]] = b;
+            fill[a as usize] += 1;
+            targets[fill[b as usize]] = a;
+            fill[b as usize] += 1;
+        }
         Self { offsets, targets }
     }
 

@@ -26,7 +26,7 @@ pub const RENUMBER_VERTICES: usize = 32_768;
 pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
     let mut mesh = read(scene)?;
     if mesh.vertex_count() >= RENUMBER_VERTICES {
-        mesh = mesh.renumbered(&reverse_cuthill_mckee(mesh.vertex_count(), &mesh.tets));
+        mesh = mesh.renumbered(&reverse_cuthill_mckee(mesh.vertex_count(), &mesh.edges));
     }
     mesh.scale(scene.mesh.scale);
     if scene.mesh.center {

@@ -4,6 +4,7 @@
 use std::collections::BTreeSet;
 
 use super::super::generate::kuhn_box;
+use super::super::topology::edges;
 use super::super::{TetMesh, read_gmsh, reverse_cuthill_mckee};
 use super::{LIVER, LIVER_5K};
 
@@ -34,7 +35,7 @@ fn reverse_cuthill_mckee_narrows_a_shuffled_grid_to_its_natural_bandwidth() {
     let shuffle = |v: u32| (v * 383) % n;
     let shuffled: Vec<[u32; 4]> = tets.iter().map(|t| t.map(shuffle)).collect();
     assert!(bandwidth(&shuffled, |v| v) > 600);
-    let new = reverse_cuthill_mckee(n as usize, &shuffled);
+    let new = reverse_cuthill_mckee(n as usize, &edges(&shuffled));
     assert_permutation(&new);
     // Cuthill–McKee numbers level by level, so an edge spans at most two levels; on
     // a grid that is no wider than the grid's own numbering (82 here).
@@ -46,7 +47,7 @@ fn reverse_cuthill_mckee_narrows_a_shuffled_grid_to_its_natural_bandwidth() {
 fn reverse_cuthill_mckee_numbers_each_component_in_one_block() {
     // Two separate tetrahedra and a vertex that none uses, interleaved.
     let tets = [[0, 2, 4, 6], [1, 3, 5, 7]];
-    let new = reverse_cuthill_mckee(9, &tets);
+    let new = reverse_cuthill_mckee(9, &edges(&tets));
     assert_permutation(&new);
     for t in tets {
         let k: BTreeSet<u32> = t.iter().map(|&v| new[v as usize]).collect();
@@ -54,7 +55,7 @@ fn reverse_cuthill_mckee_numbers_each_component_in_one_block() {
         assert_eq!(hi - lo, 3, "component {t:?} numbered {k:?}");
     }
     // Deterministic: the same input, the same numbering.
-    assert_eq!(new, reverse_cuthill_mckee(9, &tets));
+    assert_eq!(new, reverse_cuthill_mckee(9, &edges(&tets)));
 }
 
 #[test]
@@ -62,7 +63,7 @@ fn the_livers_file_numbering_is_scattered_and_reverse_cuthill_mckee_gathers_it()
     for text in [LIVER, LIVER_5K] {
         let mesh = read_gmsh(text, "liver").unwrap();
         let n = mesh.vertex_count();
-        let new = reverse_cuthill_mckee(n, &mesh.tets);
+        let new = reverse_cuthill_mckee(n, &mesh.edges);
         assert_permutation(&new);
         let before = bandwidth(&mesh.tets, |v| v);
         let after = bandwidth(&mesh.tets, |v| new[v as usize]);
@@ -76,7 +77,7 @@ fn the_livers_file_numbering_is_scattered_and_reverse_cuthill_mckee_gathers_it()
 /// `mesh` renumbered by reverse Cuthill–McKee, checked to be `mesh` itself: every
 /// vertex, element, tag, edge and surface triangle carried over by the numbering.
 fn renumbered_and_checked(mesh: &TetMesh) -> (TetMesh, Vec<u32>) {
-    let new = reverse_cuthill_mckee(mesh.vertex_count(), &mesh.tets);
+    let new = reverse_cuthill_mckee(mesh.vertex_count(), &mesh.edges);
     let r = mesh.renumbered(&new);
     let map = |v: u32| new[v as usize];
     for (v, &k) in new.iter().enumerate() {

@@ -17,7 +17,7 @@ fn a_renumbered_liver_holds_and_moves_as_the_file_numbered_one() {
     scene.fixed.nodes = vec![0, 5, 17];
     let file = load(&scene).unwrap();
     let n = file.vertex_count();
-    let new = reverse_cuthill_mckee(n, &file.tets);
+    let new = reverse_cuthill_mckee(n, &file.edges);
     assert!(new.iter().enumerate().any(|(v, &k)| v as u32 != k));
     let mut a = scene.build_on(file.clone()).unwrap();
     let mut b = scene.build_on(file.renumbered(&new)).unwrap();
