@@ -49,11 +49,12 @@ pub struct ContactReport {
     /// Surface edges with a held vertex that lie along the shaft: the "neighbouring
     /// edges" of the shaft plane (§3).
     pub shaft_edges: Vec<u32>,
-    /// The tissue's force on the instrument, N: the sum of the elastic reactions
-    /// `−(K u)_i` on the vertices it holds.
+    /// The tissue's force on the instrument, N: the sum of [`Self::held_reactions`].
     pub reaction: Vector3<f64>,
-    /// The elastic reaction on each held vertex, N, in the order of
-    /// [`Instrument::held`].
+    /// The tissue's force on the instrument at each held vertex, N, in the order of
+    /// [`Instrument::held`]: its elastic reaction `−(K u)_i`, scaled on the tip's end
+    /// to the tip's own footprint when the scene asks (`contact.footprint`, see
+    /// `footprint`).
     pub held_reactions: Vec<Vector3<f64>>,
 }
 

@@ -23,6 +23,9 @@
 //! - `push`: edges and vertices out of the instrument (§2.6), with
 //! - `faces`: triangle interiors out of it, the correction shared by the triangle's
 //!   vertices (least-norm barycentric mapping).
+//! - `footprint`: on the scene's request (`contact.footprint`), the tip's force
+//!   scaled from the patch of vertices the mesh holds to the tip's own footprint,
+//!   so that a press feels the same on a coarse mesh as on a fine one.
 //! - [`instrument`]: an instrument's geometry, poses, held vertices and report.
 //! - `settle`: the free tissue around what the contact steps jumped, corrected
 //!   statically with it, so that a first contact does not spike.
@@ -47,6 +50,7 @@ pub mod closest;
 pub mod crossing;
 mod edges;
 mod faces;
+mod footprint;
 pub mod instrument;
 pub mod pose;
 mod push;

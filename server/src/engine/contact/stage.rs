@@ -76,6 +76,8 @@ pub struct ContactStage {
     jumped: Vec<u32>,
     /// The settling's buffers, unless the scene turns it off (`contact.settle`).
     settle: Option<Settle>,
+    /// Whether the tip's reactions are scaled to its own footprint (`footprint`).
+    footprint: bool,
     s: Scratch,
 }
 
@@ -131,6 +133,7 @@ impl ContactStage {
             slid: vec![Vector3::zeros(); n],
             jumped: Vec::new(),
             settle: None,
+            footprint: false,
             s: Scratch::new(surface, rest, fixed),
         }
     }
@@ -141,6 +144,13 @@ impl ContactStage {
         let n = self.holders.len();
         self.settle = on.then(|| Settle::new(n));
         self.jumped = Vec::with_capacity(if on { n } else { 0 });
+        self
+    }
+
+    /// The stage with the tip's force scaled to its own footprint on or off (off when
+    /// built; see `footprint`).
+    pub fn with_footprint(mut self, on: bool) -> Self {
+        self.footprint = on;
         self
     }
 
@@ -310,7 +320,7 @@ impl ContactStage {
             self.slid[v as usize] = Vector3::zeros();
         }
         for ins in instruments.iter_mut() {
-            self.report_reaction(ins, model, state);
+            self.report_reaction(ins, surface, model, state);
             // What the stage holds moves with the instrument: its velocity is the
             // instrument's at that point over the tick, `(R(x₀) − x₀)/dt`. The jumps of
             // the contact steps (a vertex put back on the instrument's surface, a tip
@@ -537,8 +547,16 @@ impl ContactStage {
     /// The tissue's force on the instrument: the elastic reactions on what it holds,
     /// from the elastic model's own force (corotational: the rotations around each
     /// held vertex extracted afresh; the linear `K u` would count the turn of tissue
-    /// pushed aside as strain, and the calibrated force model would render it).
-    fn report_reaction(&self, ins: &mut Instrument, model: &ElasticModel, state: &State) {
+    /// pushed aside as strain, and the calibrated force model would render it). With
+    /// the scene's `contact.footprint`, the reactions on the tip's end are scaled to
+    /// the tip's own footprint (see `footprint`).
+    fn report_reaction(
+        &self,
+        ins: &mut Instrument,
+        surface: &Surface,
+        model: &ElasticModel,
+        state: &State,
+    ) {
         let mut total = Vector3::zeros();
         ins.report.held_reactions.clear();
         for &v in &ins.held {
@@ -547,6 +565,34 @@ impl ContactStage {
             total -= ku;
         }
         ins.report.reaction = total;
+        let Some(pose) = ins.current.filter(|_| self.footprint && ins.tip_contact) else {
+            return;
+        };
+        let (length, radius) = (ins.active_length(), ins.radius);
+        let z = pose.axis.into_inner();
+        let on_tip = |v: u32| {
+            contact_normal(&state.x[v as usize], &pose, length, radius, true)
+                .is_some_and(|(m, _)| m == -z)
+        };
+        let held = &ins.held;
+        let report = &mut ins.report;
+        let patch = held
+            .iter()
+            .zip(&report.held_reactions)
+            .filter(|(v, _)| on_tip(**v))
+            .map(|(&v, &f)| (v, f));
+        let scale = super::footprint::tip_scale(patch, surface, &state.x, &pose.axis, radius);
+        if scale < 1.0 {
+            let mut cut_total = Vector3::zeros();
+            for (&v, f) in held.iter().zip(report.held_reactions.iter_mut()) {
+                if on_tip(v) {
+                    let cut = (1.0 - scale) * *f;
+                    *f -= cut;
+                    cut_total += cut;
+                }
+            }
+            report.reaction -= cut_total;
+        }
     }
 
     /// The shaft's neighbouring edges (§3): candidate edges with a held end that lie

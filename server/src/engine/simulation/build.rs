@@ -56,6 +56,7 @@ impl Scene {
         let contact = pushes.then(|| {
             ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len())
                 .with_settling(self.contact.settle)
+                .with_footprint(self.contact.footprint)
         });
         let forces = pushes
             .then(|| LocalModelStage::new(self.force_model.kind, &mesh, &model, &instruments));
