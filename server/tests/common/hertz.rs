@@ -54,8 +54,15 @@ pub fn block() -> TetMesh {
 /// The block as a static scene with one frictionless instrument, its tip approached
 /// from above (so the stage sees the surface from outside first).
 pub fn block_scene() -> Simulation {
-    let mesh = block();
+    block_scene_on(block(), true)
+}
+
+/// The block scene's setting (static, linear, frictionless, fixed at its base, the
+/// tip above the top face) on another block of the same size, the tip's force scaled
+/// to its footprint or not (`contact.footprint`).
+pub fn block_scene_on(mesh: TetMesh, footprint: bool) -> Simulation {
     let mut scene = Scene::default_scene();
+    scene.contact.footprint = footprint;
     scene.gravity = [0.0; 3];
     scene.material.model = Formulation::Linear;
     scene.mechanics.integrator = IntegratorKind::Static;
