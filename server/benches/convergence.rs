@@ -8,7 +8,7 @@
 //! liver-5k/20k/80k series (and liver-300k with `--with-300k`: about a minute a case),
 //! settled under gravity for 1 s, then pressed on its free front (+z) face by
 //! instrument 0 alone. Three gestures, each ramped in over 0.5 s (30 ticks) from 1 cm
-//! outside and held still for 1 s (60 ticks):
+//! outside the surface and held still for 1 s (60 ticks):
 //! - **tip 8 mm**, **tip 15 mm**: axis +z (the tip points into −z) through the front
 //!   point ([`front_point`]: the front-face vertex nearest the middle); the
 //!   instrument's foremost point `P − r Z` ends `d` past that vertex, so the tissue is
@@ -17,11 +17,13 @@
 //!   front point, the tip 6 cm beyond it in +x; the shaft's underside ends `d` past
 //!   the front point.
 //!
-//! For each mesh and force model (the paper's `geometric` and the `calibrated` one),
-//! at the end of the hold:
-//! - `reaction`: |Σ −(K u)_i| over the vertices the instrument holds, the elastic
-//!   model's own answer (the force model does not feed back into the tissue, so it is
-//!   the same for both force models);
+//! For each mesh and force model (the paper's `geometric` and the `calibrated` one,
+//! and the calibrated one with `contact.footprint`), at the end of the hold:
+//! - `reaction`: the tissue's force on the instrument as the contact stage reports
+//!   it, |Σ −(K u)_i| over the vertices the instrument holds (the force model does
+//!   not feed back into the tissue, so it is the same for both force models); in the
+//!   rows `+ footprint`, those of the tip's end scaled to the tip's footprint (scene
+//!   `contact.footprint`);
 //! - `rendered`: |F| of the local model at the pose, what the device is sent;
 //! - `angle`: between the rendered force and the reaction, degrees;
 //! - `held`: vertices held;
@@ -66,7 +68,9 @@ const RAMP_TICKS: usize = 30;
 const HOLD_TICKS: usize = 60;
 /// The last ticks of the hold over which the spread is taken (0.5 s).
 const SPREAD_TICKS: usize = 30;
-/// Where a gesture starts: this far outside its final place, m.
+/// Where a gesture starts: this far outside the surface (the gesture's depth plus
+/// this outside its final place), m. Starting only this far from the final place put
+/// the 15 mm tip 5 mm inside the liver on its first tick.
 const APPROACH: f64 = 0.01;
 
 #[derive(Clone, Copy)]
@@ -76,6 +80,13 @@ enum Gesture {
 }
 
 impl Gesture {
+    /// How deep the gesture presses, m.
+    fn depth(self) -> f64 {
+        match self {
+            Gesture::Tip(d) | Gesture::Shaft(d) => d,
+        }
+    }
+
     fn label(self) -> String {
         match self {
             Gesture::Tip(d) => format!("tip {} mm", d * 1e3),
@@ -107,10 +118,11 @@ struct Outcome {
     spread: f64,
 }
 
-fn run(file: &str, kind: ForceModelKind, gesture: Gesture) -> Outcome {
+fn run(file: &str, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) -> Outcome {
     let mut scene = scene(file, IntegratorKind::Implicit, 1e-6);
     scene.mechanics.rate_hz = RATE_HZ;
     scene.force_model.kind = kind;
+    scene.contact.footprint = footprint;
     let mut sim = build(&scene);
     for _ in 0..SETTLE_TICKS {
         sim.tick();
@@ -119,7 +131,10 @@ fn run(file: &str, kind: ForceModelKind, gesture: Gesture) -> Outcome {
         sim.set_pose(k, None);
     }
     let end = gesture.pose(&sim, sim.instruments[0].radius);
-    let start = InstrumentPose::new(end.tip + Vector3::z() * APPROACH, end.axis);
+    let start = InstrumentPose::new(
+        end.tip + Vector3::z() * (gesture.depth() + APPROACH),
+        end.axis,
+    );
     let mut magnitudes = Vec::new();
     for k in 1..=RAMP_TICKS + HOLD_TICKS {
         let pose = start.lerp(&end, k as f64 / RAMP_TICKS as f64);
@@ -254,7 +269,13 @@ fn gestures() {
         Gesture::Tip(0.015),
         Gesture::Shaft(0.010),
     ];
-    let kinds = [ForceModelKind::Geometric, ForceModelKind::Calibrated];
+    // Each force model, and the calibrated one with the tip's force scaled to its
+    // footprint (scene `contact.footprint`).
+    let kinds = [
+        (ForceModelKind::Geometric, false),
+        (ForceModelKind::Calibrated, false),
+        (ForceModelKind::Calibrated, true),
+    ];
     println!(
         "Press on the default liver's free front, 60 Hz implicit, CG tol 1e-6, ramp 0.5 s, hold 1 s; values at the end of the hold"
     );
@@ -262,14 +283,15 @@ fn gestures() {
         println!("\n{}", gesture.label());
         println!("| mesh | force model | reaction N | rendered N | angle ° | held | spread % |");
         println!("|---|---|---|---|---|---|---|");
-        for kind in kinds {
+        for (kind, footprint) in kinds {
+            let label = format!("{kind:?}{}", if footprint { " + footprint" } else { "" });
             // |reaction| and |rendered| per mesh label.
             let mut reaction = Vec::new();
             let mut rendered = Vec::new();
             for m in &meshes {
-                let o = run(&m.file, kind, gesture);
+                let o = run(&m.file, (kind, footprint), gesture);
                 println!(
-                    "| {} | {kind:?} | {:.3} | {:.3} | {:.1} | {} | {:.2} |",
+                    "| {} | {label} | {:.3} | {:.3} | {:.1} | {} | {:.2} |",
                     m.label,
                     o.reaction.norm(),
                     o.rendered.norm(),
@@ -280,8 +302,8 @@ fn gestures() {
                 reaction.push((m.label, o.reaction.norm()));
                 rendered.push((m.label, o.rendered.norm()));
             }
-            summarise(&format!("{kind:?} reaction"), &reaction);
-            summarise(&format!("{kind:?} rendered"), &rendered);
+            summarise(&format!("{label} reaction"), &reaction);
+            summarise(&format!("{label} rendered"), &rendered);
         }
     }
 }
