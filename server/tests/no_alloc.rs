@@ -97,7 +97,8 @@ fn ticks_allocate_nothing() {
 fn contact_ticks_allocate_nothing() {
     // Both instruments press the front of the liver, one with its tip and one with its
     // shaft, turning as they go (so the stage takes several sub-moves a tick); with
-    // and without the settling of the tissue around the contact's jumps.
+    // and without the settling of the tissue around the contact's jumps, the second
+    // with the tip's force scaled to its footprint.
     for model in [Formulation::Linear, Formulation::Corotational] {
         for preconditioner in [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg] {
             for settle in [false, true] {
@@ -105,6 +106,7 @@ fn contact_ticks_allocate_nothing() {
                 scene.material.model = model;
                 scene.mechanics.preconditioner = preconditioner;
                 scene.contact.settle = settle;
+                scene.contact.footprint = settle;
                 contact_ticks_allocate_nothing_with(scene.build().unwrap());
             }
         }
