@@ -13,9 +13,7 @@ mod common;
 
 use common::hertz::*;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{
-    graded_lines, graded_lines_symmetric, kuhn_box, kuhn_grid,
-};
+use laparo_server::engine::mesh::generate::kuhn_box;
 
 /// 10 mm cubes: the tip's press lays a whole 10 mm face on its plane.
 fn coarse() -> TetMesh {
@@ -29,15 +27,7 @@ fn coarse() -> TetMesh {
 
 /// 1 mm cells within 7 mm of the tip, growing by 1.4 a cell outward.
 fn fine() -> TetMesh {
-    let (h0, core, growth) = (1e-3, 7e-3, 1.4);
-    let x = graded_lines_symmetric(h0, core, growth, BLOCK_HALF_WIDTH);
-    let z: Vec<f64> = graded_lines(h0, core, growth, BLOCK_DEPTH)
-        .iter()
-        .rev()
-        .map(|d| -d)
-        .collect();
-    let (positions, tets) = kuhn_grid(&[x.clone(), x, z]);
-    TetMesh::from_tets(positions, tets).expect("the fine block is valid")
+    graded_block(1e-3, 7e-3, 1.4)
 }
 
 /// The depths pressed in turn, m. The first is a step on the way: there, on the fine

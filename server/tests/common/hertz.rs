@@ -40,7 +40,12 @@ pub const MAX_PASSES: usize = 40;
 
 /// The graded block: top face at `z = 0`, bottom at `−BLOCK_DEPTH`.
 pub fn block() -> TetMesh {
-    let (h0, core, growth) = (0.25e-3, 2.5e-3, 1.4);
+    graded_block(0.25e-3, 2.5e-3, 1.4)
+}
+
+/// A block of the same size graded to cells of `h0` within `core` of the middle of
+/// its top face, growing by `growth` a cell outward (m).
+pub fn graded_block(h0: f64, core: f64, growth: f64) -> TetMesh {
     let x = graded_lines_symmetric(h0, core, growth, BLOCK_HALF_WIDTH);
     let z: Vec<f64> = graded_lines(h0, core, growth, BLOCK_DEPTH)
         .iter()

@@ -20,6 +20,13 @@ fn block(turn: Rotation3<f64>) -> TetMesh {
     TetMesh::from_tets(positions, tets).expect("the block is valid")
 }
 
+/// The block unturned, with its top face's vertices.
+fn unturned() -> (TetMesh, Vec<u32>) {
+    let mesh = block(Rotation3::identity());
+    let top = top(&mesh, &Rotation3::identity());
+    (mesh, top)
+}
+
 /// The top face's vertices (before the turn, `z = 0`).
 fn top(mesh: &TetMesh, turn: &Rotation3<f64>) -> Vec<u32> {
     top_within(mesh, turn, HALF)
@@ -54,10 +61,9 @@ fn scale(mesh: &TetMesh, patch: &[(u32, Vector3<f64>)], axis: Vector3<f64>, r: f
 /// edge-on along the axis, add nothing.
 #[test]
 fn a_patch_of_equal_pushes_is_as_wide_as_its_surface() {
-    let turn = Rotation3::identity();
-    let mesh = block(turn);
+    let (mesh, top) = unturned();
     let push = Vector3::new(0.0, 0.0, 0.3);
-    let patch: Vec<_> = top(&mesh, &turn).into_iter().map(|v| (v, push)).collect();
+    let patch: Vec<_> = top.into_iter().map(|v| (v, push)).collect();
     let r = 0.005;
     let expected = r / (4.0 * HALF * HALF / std::f64::consts::PI).sqrt();
     let s = scale(&mesh, &patch, Vector3::z(), r);
@@ -113,10 +119,8 @@ fn the_patch_is_seen_along_the_axis_and_turns_with_the_body() {
 /// the mean counts half its share: the shares are weighed by `min(1, N_i / N̄)`.
 #[test]
 fn a_vertex_counts_as_far_as_it_pushes() {
-    let turn = Rotation3::identity();
-    let mesh = block(turn);
+    let (mesh, top) = unturned();
     let r = 0.001;
-    let top = top(&mesh, &turn);
     let (inner, rest) = top.split_at(top.len() / 2);
     let push = Vector3::new(0.02, -0.01, 0.4);
     let base: Vec<_> = inner.iter().map(|&v| (v, push)).collect();
@@ -164,12 +168,8 @@ fn a_vertex_counts_as_far_as_it_pushes() {
 /// A patch narrower than the tip is the tip's own, and nothing pushing is no patch.
 #[test]
 fn a_patch_within_the_tip_is_left_alone() {
-    let turn = Rotation3::identity();
-    let mesh = block(turn);
-    let patch: Vec<_> = top(&mesh, &turn)
-        .into_iter()
-        .map(|v| (v, Vector3::z()))
-        .collect();
+    let (mesh, top) = unturned();
+    let patch: Vec<_> = top.into_iter().map(|v| (v, Vector3::z())).collect();
     assert_eq!(scale(&mesh, &patch, Vector3::z(), 0.05), 1.0);
     let pulled: Vec<_> = patch.iter().map(|&(v, f)| (v, -f)).collect();
     assert_eq!(scale(&mesh, &pulled, Vector3::z(), 0.001), 1.0);
