@@ -24,9 +24,10 @@
 //! - a patch narrower than the tip is the tip's own: the scale is 1.
 //!
 //! Both the normal and the tangential parts are scaled: the drag of a stuck patch
-//! is as much too stiff as its push (on liver-5k pressed 15 mm, the sideways part
-//! of the patch's reaction is 0.48 N against 0.25 N on liver-80k). What the shaft
-//! holds is its reaction itself.
+//! is as much too stiff as its push (pressed 15 mm, the sideways part of the held
+//! patch's reaction was 0.48 N on liver-5k against 0.13 N on liver-80k, and scaling
+//! the push alone left the three livers ±18% apart). What the shaft holds is its
+//! reaction itself.
 //!
 //! The scene asks for it (`contact.footprint`, off by default): the calibrated force
 //! model renders the scaled force, and its hand loop on 1 MPa tissue then falls in
@@ -39,9 +40,12 @@
 //! `r / a_h`; no bench gesture does that yet.
 //!
 //! Checked on the default liver's free front (the convergence bench): pressed 8 and
-//! 15 mm, the forces of liver-5k, liver-20k and liver-80k lie within ±10% of each
-//! other where the reactions themselves spread ±45%, and SOFA's coarse liver within
-//! ±25% of them. As the mesh is refined, `a_h` falls to the tip's own footprint and
+//! 15 mm, the forces of liver-5k, liver-20k and liver-80k lie within ±7.5% and ±3.3%
+//! of their mean, where the reactions themselves spread ±44% and ±60%; SOFA's coarse
+//! liver lies 27% and 16% below that mean. On a block (`server/tests/
+//! contact_footprint.rs`) meshed at twice the tip's radius, an 8 mm press gives
+//! within 5% of the force on a block graded to 1 mm, where its own reaction is 2.7
+//! times that. As the mesh is refined, `a_h` falls to the tip's own footprint and
 //! the scale to 1. The deformed surface is the mesh's: the scale corrects the force
 //! for what the mesh cannot resolve, not the shape.
 
