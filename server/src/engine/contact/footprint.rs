@@ -81,12 +81,13 @@ pub(super) fn tip_scale(
 }
 
 /// A third of the area of each surface triangle around vertex `v`, projected on the
-/// plane normal to `axis`, m².
+/// plane normal to `axis`, m² (0 for a vertex off the surface).
 fn projected_share(surface: &Surface, v: u32, x: &[Point3<f64>], axis: &Vector3<f64>) -> f64 {
-    let slot = surface.surface_index[v as usize] as usize;
-    let around = surface.vertex_triangle_offsets[slot] as usize
-        ..surface.vertex_triangle_offsets[slot + 1] as usize;
-    surface.vertex_triangles[around]
+    let Some(slot) = surface.slot(v) else {
+        return 0.0;
+    };
+    surface
+        .triangles_around(slot)
         .iter()
         .map(|&t| {
             let [a, b, c] = surface.triangles[t as usize].map(|w| x[w as usize]);

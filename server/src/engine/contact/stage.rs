@@ -751,12 +751,11 @@ fn tip_touches_a_triangle_of(
     radius: f64,
     x: &[Point3<f64>],
 ) -> bool {
-    let slot = surface.surface_index[v as usize] as usize;
-    let around = surface.vertex_triangle_offsets[slot] as usize
-        ..surface.vertex_triangle_offsets[slot + 1] as usize;
-    surface.vertex_triangles[around].iter().any(|&t| {
-        let tri = surface.triangles[t as usize].map(|w| x[w as usize]);
-        (closest_point_triangle(tip, &tri).point - tip).norm() <= OFF_SHAFT * radius
+    surface.slot(v).is_some_and(|slot| {
+        surface.triangles_around(slot).iter().any(|&t| {
+            let tri = surface.triangles[t as usize].map(|w| x[w as usize]);
+            (closest_point_triangle(tip, &tri).point - tip).norm() <= OFF_SHAFT * radius
+        })
     })
 }
 
