@@ -117,7 +117,7 @@ pub fn split(
 mod model;
 pub mod wire;
 
-pub use model::{AppliedForce, ForceModel, LocalModel};
+pub use model::{AppliedForce, ForceModel, LATERAL_STIFFNESS_RATIO, LocalModel};
 
 #[cfg(test)]
 mod tests;

@@ -297,10 +297,11 @@ fn the_drag_is_felt_at_the_model_pose_and_pulls_back_sideways() {
     // At the model's pose: the push and the drag, the elastic reaction.
     let f = m.force(&m.tip, &m.axis).force;
     assert!((f - Vector3::new(0.5, 0.0, 2.0)).norm() < 1e-12, "{f}");
-    // 0.3 mm sideways (+x, +y): the held tissue pulls back with λ at once.
+    // 0.3 mm sideways (+x, −y): the held tissue pulls back with κλ at once.
     let moved = Point3::new(3e-4, -3e-4, 0.0);
     let f = m.force(&moved, &m.axis).force;
-    let expected = Vector3::new(0.5 - 0.3, 0.3, 2.0);
+    let pull = LATERAL_STIFFNESS_RATIO * 1000.0 * 3e-4;
+    let expected = Vector3::new(0.5 - pull, pull, 2.0);
     assert!((f - expected).norm() < 1e-12, "{f}");
     // Deeper by 1 mm: the push grows by λ · 1 mm, the drag stays.
     let f = m.force(&Point3::new(0.0, 0.0, -0.001), &m.axis).force;
