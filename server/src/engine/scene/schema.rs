@@ -210,11 +210,9 @@ pub struct ContactSpec {
     pub settle: bool,
     /// Scale the force on the tip's end from the patch of vertices the mesh holds to
     /// the tip's own footprint (`engine/contact/footprint.rs`), so that a press gives
-    /// the same force on a coarse liver as on a fine one. Off unless the scene turns
-    /// it on: the calibrated force model renders the scaled force, and the hand loop
-    /// on stiff tissue oscillates in a band of stiffness (430–600 kPa on SOFA's liver
-    /// without the scale) that the scale moves onto 1 MPa; on, the tip's force is no
-    /// longer up to 2.7× the footprint's on the 5k liver.
+    /// the same force on a coarse liver as on a fine one. On unless the scene turns
+    /// it off; off, a tip press on the 5k liver gives up to 2.7× the footprint's
+    /// force, and the press's force spreads ±44% over liver-5k, 20k and 80k.
     #[serde(default = "default_footprint")]
     pub footprint: bool,
 }
@@ -233,9 +231,9 @@ fn default_settle() -> bool {
     true
 }
 
-/// The tip's force is the held patch's unless the scene asks for its footprint's.
+/// The tip's force is its footprint's unless the scene asks for the held patch's.
 fn default_footprint() -> bool {
-    false
+    true
 }
 
 /// How reaction forces are computed.

@@ -194,15 +194,15 @@ fn the_contact_is_settled_unless_the_scene_says_not() {
 }
 
 #[test]
-fn the_tip_force_is_scaled_to_its_footprint_when_the_scene_asks() {
-    assert!(!parse(MINIMAL).unwrap().contact.footprint);
+fn the_tip_force_is_scaled_to_its_footprint_unless_the_scene_says_not() {
+    assert!(parse(MINIMAL).unwrap().contact.footprint);
     assert!(
-        !crate::engine::scene::Scene::default_scene()
+        crate::engine::scene::Scene::default_scene()
             .contact
             .footprint
     );
-    let scene = parse(&format!("{MINIMAL}\n[contact]\nfootprint = true\n")).unwrap();
-    assert!(scene.contact.footprint && scene.contact.settle);
+    let scene = parse(&format!("{MINIMAL}\n[contact]\nfootprint = false\n")).unwrap();
+    assert!(!scene.contact.footprint && scene.contact.settle);
     expect_path(
         parse(&format!("{MINIMAL}\n[contact]\nfootprint = \"on\"\n")),
         "contact.footprint",
