@@ -26,6 +26,27 @@ pub struct Plane {
     pub drag: Vector3<f64>,
 }
 
+impl Plane {
+    /// The stiffest spring the plane renders, N/m: `λ` along `n`, and `κ λ` along the
+    /// plane for the held tissue's pull when it carries a drag
+    /// ([`LATERAL_STIFFNESS_RATIO`]).
+    pub fn stiffest_spring(&self) -> f64 {
+        if self.drag == Vector3::zeros() {
+            self.stiffness
+        } else {
+            LATERAL_STIFFNESS_RATIO * self.stiffness
+        }
+    }
+
+    /// Lowers `λ` so that no spring of the plane is stiffer than `limit` (N/m).
+    pub fn limit_stiffness(&mut self, limit: f64) {
+        let stiffest = self.stiffest_spring();
+        if stiffest > limit {
+            self.stiffness *= limit / stiffest;
+        }
+    }
+}
+
 /// Eq. 8: the plane's force on the instrument whose tip is at `tip`,
 /// `F = λ · max(0, (A − P)·n) · n`, N.
 ///

@@ -27,7 +27,8 @@ pub struct Coupled<D: HapticDevice> {
     /// Largest jump a model switch would have made without blending: the new model's
     /// force at the device pose against the force rendered just before, N.
     pub max_switch_jump: f64,
-    /// Largest plane stiffness of any model sent, N/m.
+    /// Largest spring of any plane of any model sent (`λ`, or `κ λ` for the held
+    /// tissue's pull), N/m.
     pub max_stiffness: f64,
 }
 
@@ -89,7 +90,7 @@ impl<D: HapticDevice> Coupled<D> {
         let jump = (model.force(&pose.tip, &pose.axis).force - rendered).norm();
         self.max_switch_jump = self.max_switch_jump.max(jump);
         for plane in model.tip_plane.iter().chain(&model.shaft_plane) {
-            self.max_stiffness = self.max_stiffness.max(plane.stiffness);
+            self.max_stiffness = self.max_stiffness.max(plane.stiffest_spring());
         }
         self.inbox.write(model);
         true

@@ -34,7 +34,8 @@ pub trait HapticDevice: Send {
     fn max_force(&self) -> f64;
 
     /// The stiffest plane the device renders stably at the loop's rate, N/m: the
-    /// force loop lowers any plane's stiffness to it (the device then sinks deeper
+    /// force loop lowers any plane's stiffness so that none of its springs is stiffer
+    /// (`laparo_proto::force::Plane::limit_stiffness`; the device then sinks deeper
     /// into a stiff tissue to feel the same force, as real devices do). A device that
     /// only follows a script has no dynamics to destabilise: no limit.
     fn max_stiffness(&self) -> f64 {

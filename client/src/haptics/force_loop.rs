@@ -167,7 +167,7 @@ impl<D: HapticDevice> ForceLoop<D> {
                 .iter_mut()
                 .chain(model.shaft_plane.iter_mut())
             {
-                plane.stiffness = plane.stiffness.min(limit);
+                plane.limit_stiffness(limit);
             }
             self.blender.arrive(t, model, &tip, &axis);
             self.stats.record_model();

@@ -349,3 +349,42 @@ fn the_drag_round_trips_through_the_wire() {
     assert!(msg.tip_plane.unwrap().drag_n.is_some());
     assert_eq!(LocalModel::try_from(&msg).unwrap(), m);
 }
+
+/// The slopes of a tip model's force at its pose, N/m: along `n` (pressing deeper)
+/// and sideways (+x), by differences over 1 µm.
+fn slopes(m: &LocalModel) -> (f64, f64) {
+    let f0 = m.force(&m.tip, &m.axis).force;
+    let h = 1e-6;
+    let deeper = m.force(&(m.tip - Vector3::z() * h), &m.axis).force;
+    let aside = m.force(&(m.tip + Vector3::x() * h), &m.axis).force;
+    ((deeper - f0).z / h, -(aside - f0).x / h)
+}
+
+#[test]
+fn a_limited_plane_has_no_spring_stiffer_than_the_limit() {
+    let mut m = dragged_tip();
+    let (normal, lateral) = slopes(&m);
+    assert!((normal - 1000.0).abs() < 1e-6, "{normal}");
+    assert!(
+        (lateral - LATERAL_STIFFNESS_RATIO * 1000.0).abs() < 1e-6,
+        "{lateral}"
+    );
+    // The pull of the held tissue is the stiffest spring; the limit lowers it to
+    // the limit, and the push with it.
+    let limit = 1200.0;
+    m.tip_plane.as_mut().unwrap().limit_stiffness(limit);
+    let (normal, lateral) = slopes(&m);
+    assert!((lateral - limit).abs() < 1e-6, "{lateral}");
+    assert!(
+        (normal - limit / LATERAL_STIFFNESS_RATIO).abs() < 1e-6,
+        "{normal}"
+    );
+    // Without drag only the push is a spring; a limit above it changes nothing.
+    let mut bare = m.tip_plane.unwrap();
+    bare.drag = Vector3::zeros();
+    bare.limit_stiffness(500.0);
+    assert_eq!(bare.stiffness, 500.0);
+    let before = bare;
+    bare.limit_stiffness(501.0);
+    assert_eq!(bare, before);
+}
