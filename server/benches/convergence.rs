@@ -22,8 +22,8 @@
 //! - `reaction`: the tissue's force on the instrument as the contact stage reports
 //!   it, |Σ −(K u)_i| over the vertices the instrument holds (the force model does
 //!   not feed back into the tissue, so it is the same for both force models); in the
-//!   rows `+ footprint`, those of the tip's end scaled to the tip's footprint (scene
-//!   `contact.footprint`);
+//!   rows `+ footprint`, those of the tip's end scaled to the tip's footprint and those
+//!   of the shaft's side to the strip the shaft presses (scene `contact.footprint`);
 //! - `rendered`: |F| of the local model at the pose, what the device is sent;
 //! - `angle`: between the rendered force and the reaction, degrees;
 //! - `held`: vertices held;

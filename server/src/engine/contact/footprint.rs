@@ -26,28 +26,40 @@
 //! Both the normal and the tangential parts are scaled: the drag of a stuck patch
 //! is as much too stiff as its push (pressed 15 mm, the sideways part of the held
 //! patch's reaction was 0.48 N on liver-5k against 0.13 N on liver-80k, and scaling
-//! the push alone left the three livers ±18% apart). What the shaft holds is its
-//! reaction itself.
+//! the push alone left the three livers ±18% apart).
 //!
-//! The scene asks for it (`contact.footprint`, off by default): the calibrated force
-//! model renders the scaled force, and its hand loop on 1 MPa tissue then falls in
-//! a band of stiffness where it oscillates (found on 430–600 kPa tissue without the
-//! scale; `tests/tests/haptics.rs` holds the loop to passivity at 1 and 10 MPa).
+//! The shaft's side is scaled alike, by [`shaft_scale`]: the shaft presses a strip
+//! along itself, and the push-out holds a strip up to an edge wider. The same punch
+//! theory, for an elliptical plan, gives the scale; a strip's force depends on its
+//! width only through a logarithm, so the correction is milder than the tip's.
+//!
+//! The scene asks for it (`contact.footprint`, on by default): the calibrated force
+//! model renders the scaled force.
 //!
 //! Assumption: the force on the tip is set by the dimple under it, the tissue's
 //! local response, as in a press. A gesture whose force is set by a whole lobe
 //! bending (lifting one on the tip) is under-reported on a coarse mesh, by up to
 //! `r / a_h`; no bench gesture does that yet.
 //!
-//! Checked on the default liver's free front (the convergence bench): pressed 8 and
-//! 15 mm, the forces of liver-5k, liver-20k and liver-80k lie within ±7.5% and ±3.3%
-//! of their mean, where the reactions themselves spread ±44% and ±60%; SOFA's coarse
-//! liver lies 27% and 16% below that mean. On a block (`server/tests/
-//! contact_footprint.rs`) meshed at twice the tip's radius, an 8 mm press gives
-//! within 5% of the force on a block graded to 1 mm, where its own reaction is 2.7
-//! times that. As the mesh is refined, `a_h` falls to the tip's own footprint and
-//! the scale to 1. The deformed surface is the mesh's: the scale corrects the force
-//! for what the mesh cannot resolve, not the shape.
+//! Checked on the default liver's free front (the convergence bench):
+//! - the tip pressed 8 and 15 mm: the forces of liver-5k, liver-20k and liver-80k lie
+//!   within ±7.5% and ±3.3% of their mean, where the reactions themselves spread ±44%
+//!   and ±60%; SOFA's coarse liver lies 27% and 16% below that mean;
+//! - the shaft pressed 10 mm: within ±6.4%, where the reactions spread ±12.1%; SOFA's
+//!   liver, whose five held vertices make a strip 2.5 r wide, lies 28% below.
+//!
+//! On a block (`server/tests/contact_footprint.rs`) meshed at twice the radius, an
+//! 8 mm tip press gives within 5% of the force on a block graded to 1 mm, where its
+//! own reaction is 2.7 times that; a 10 mm shaft press gives 20% above the graded
+//! block's, where its own reaction is 44% above. As the mesh is refined, the patch
+//! falls within the instrument and the scale to 1. The deformed surface is the
+//! mesh's: the scale corrects the force for the patch the mesh holds, not the shape.
+//!
+//! What it does not correct: the stiffness of linear tetrahedra too coarse for the
+//! dimple, which is the rest of the shaft's 20% on the block. There, at one cell per
+//! radius the shaft's force is still 13% above the graded block's, and at half a
+//! radius within 1%; on the liver, liver-300k gives 0.79 N for the shaft (8% below
+//! liver-80k) and 0.19 and 0.35 N for the tip (33% and 25% below).
 
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -78,6 +90,107 @@ pub(super) fn tip_scale(
         .sum();
     let a_h = (area / std::f64::consts::PI).sqrt();
     if a_h > radius { radius / a_h } else { 1.0 }
+}
+
+/// The scale `min(1, AGM(a_h, r) / AGM(a_h, b_h))` of the reactions on the shaft's
+/// side, for the held vertices off the tip's end (`patch`, each with its elastic
+/// reaction, N), in positions `x`, for an instrument of radius `radius` whose axis
+/// runs from `tip` along `axis`. 1 when nothing presses, and when the patch is no
+/// wider across the shaft than the shaft itself.
+///
+/// The shaft presses a strip, long along the axis and at most `2r` wide across it.
+/// Each vertex pushes the instrument toward its axis by `N_i = f_i·(−m_i)`, `m_i` the
+/// outward radial direction at it. The patch is taken as an ellipse in the plane
+/// normal to the patch's mean push `û` (the direction of `Σ N_i (−m_i)`), with the
+/// vertex shares of the tip's patch (`A_h`, weighted alike by `min(1, N_i / N̄)`):
+/// - its semi-axis along the shaft, `a_h = 2 √(I_s / A_h)`, from its second moment
+///   `I_s` along the axis (each share counted as a disc at its vertex: `S_i (s_i −
+///   s̄)² + S_i² / 4π`), which is `A a² / 4` for a uniform ellipse of semi-axis `a`;
+/// - its semi-axis across, `b_h = A_h / (π a_h)`, so that it keeps the patch's area.
+///
+/// A rigid flat punch of elliptical plan with semi-axes `a`, `b` pressed `d` into a
+/// half-space carries `F = π a E* d / K(e)`, `K` the complete elliptic integral of
+/// the first kind, `e² = 1 − b²/a²` (Galin; Johnson, *Contact Mechanics*, §3.6),
+/// which is `2 E* d AGM(a, b)` by Gauss's `K = π / (2 AGM(1, √(1 − e²)))`; for a
+/// circle `AGM(a, a) = a`, Sneddon's `2 E* a d` that [`tip_scale`] uses. Along the
+/// shaft the mesh resolves the strip's length; across it, it holds up to an edge
+/// beyond the shaft on a coarse mesh. The scale is the ratio of the true strip's
+/// stiffness, `b = r`, to the patch's. For a long strip `AGM(a, b) ≈ π a / (2
+/// ln(4a/b))`: the force of a line contact depends on its width only through a
+/// logarithm, so the correction is milder than the tip's `r / a_h`.
+pub(super) fn shaft_scale(
+    patch: impl Iterator<Item = (u32, Vector3<f64>)> + Clone,
+    surface: &Surface,
+    x: &[Point3<f64>],
+    (tip, axis): (&Point3<f64>, &Unit<Vector3<f64>>),
+    radius: f64,
+) -> f64 {
+    // N_i: the tissue pushes the instrument toward its axis, along −m_i, with m_i
+    // the outward radial direction at the vertex.
+    let z = axis.into_inner();
+    let inward = |v: u32| {
+        let d = x[v as usize] - tip;
+        Unit::try_new(d.dot(&z) * z - d, 0.0).map(Unit::into_inner)
+    };
+    let push = |v: u32, f: Vector3<f64>| inward(v).map_or(0.0, |m| f.dot(&m).max(0.0));
+    let (sum, total, count) =
+        patch
+            .clone()
+            .fold((Vector3::zeros(), 0.0, 0usize), |(u, t, c), (v, f)| {
+                let n = push(v, f);
+                (
+                    u + n * inward(v).unwrap_or_else(Vector3::zeros),
+                    t + n,
+                    c + 1,
+                )
+            });
+    // û: the patch's mean push, the normal of the plane it is seen in.
+    let Some(u) = Unit::try_new(sum, 0.0).filter(|_| total > 0.0) else {
+        return 1.0;
+    };
+    let mean = total / count as f64;
+    // The axis in that plane (the shaft lies along the strip it presses).
+    let Some(along) = Unit::try_new(z - u.into_inner() * z.dot(&u), 1e-9) else {
+        return 1.0;
+    };
+    let share =
+        |v: u32, f: Vector3<f64>| (push(v, f) / mean).min(1.0) * projected_share(surface, v, x, &u);
+    let (area, first) = patch.clone().fold((0.0, 0.0), |(a, m), (v, f)| {
+        let s = share(v, f);
+        (a + s, m + s * x[v as usize].coords.dot(&along))
+    });
+    if area <= 0.0 {
+        return 1.0;
+    }
+    let mid = first / area;
+    let second: f64 = patch
+        .map(|(v, f)| {
+            let s = share(v, f);
+            s * (x[v as usize].coords.dot(&along) - mid).powi(2)
+                + s * s / (4.0 * std::f64::consts::PI)
+        })
+        .sum();
+    let a_h = 2.0 * (second / area).sqrt();
+    let b_h = area / (std::f64::consts::PI * a_h);
+    if b_h > radius {
+        agm(a_h, radius) / agm(a_h, b_h)
+    } else {
+        1.0
+    }
+}
+
+/// Gauss's arithmetic–geometric mean of `a, b > 0`: the effective radius of a rigid
+/// elliptical punch of semi-axes `a`, `b` (see [`shaft_scale`]). Converges
+/// quadratically; six rounds take any ratio of semi-axes up to 10⁶ to machine
+/// precision, and the loop stops when the two means agree to it.
+pub(super) fn agm(mut a: f64, mut b: f64) -> f64 {
+    for _ in 0..64 {
+        if (a - b).abs() <= 1e-15 * a.max(b) {
+            break;
+        }
+        (a, b) = ((a + b) / 2.0, (a * b).sqrt());
+    }
+    a
 }
 
 /// A third of the area of each surface triangle around vertex `v`, projected on the

@@ -549,7 +549,8 @@ impl ContactStage {
     /// held vertex extracted afresh; the linear `K u` would count the turn of tissue
     /// pushed aside as strain, and the calibrated force model would render it). With
     /// the scene's `contact.footprint`, the reactions on the tip's end are scaled to
-    /// the tip's own footprint (see `footprint`).
+    /// the tip's own footprint, and those on the shaft's side to the strip the shaft
+    /// presses (see `footprint`).
     fn report_reaction(
         &self,
         ins: &mut Instrument,
@@ -565,34 +566,45 @@ impl ContactStage {
             total -= ku;
         }
         ins.report.reaction = total;
-        let Some(pose) = ins.current.filter(|_| self.footprint && ins.tip_contact) else {
+        let Some(pose) = ins.current.filter(|_| self.footprint) else {
             return;
         };
-        let (length, radius) = (ins.active_length(), ins.radius);
+        let (length, radius, tip_contact) = (ins.active_length(), ins.radius, ins.tip_contact);
         let z = pose.axis.into_inner();
         let on_tip = |v: u32| {
-            contact_normal(&state.x[v as usize], &pose, length, radius, true)
-                .is_some_and(|(m, _)| m == -z)
+            tip_contact
+                && contact_normal(&state.x[v as usize], &pose, length, radius, true)
+                    .is_some_and(|(m, _)| m == -z)
         };
         let held = &ins.held;
         let report = &mut ins.report;
-        let patch = held
-            .iter()
-            .zip(&report.held_reactions)
-            .filter(|(v, _)| on_tip(**v))
-            .map(|(&v, &f)| (v, f));
-        let scale = super::footprint::tip_scale(patch, surface, &state.x, &pose.axis, radius);
-        if scale < 1.0 {
-            let mut cut_total = Vector3::zeros();
-            for (&v, f) in held.iter().zip(report.held_reactions.iter_mut()) {
-                if on_tip(v) {
-                    let cut = (1.0 - scale) * *f;
-                    *f -= cut;
-                    cut_total += cut;
-                }
-            }
-            report.reaction -= cut_total;
+        let patch = |tip: bool| {
+            held.iter()
+                .zip(&report.held_reactions)
+                .filter(move |(v, _)| on_tip(**v) == tip)
+                .map(|(&v, &f)| (v, f))
+        };
+        // The shaft's side, then the tip's end.
+        let scales = [
+            super::footprint::shaft_scale(
+                patch(false),
+                surface,
+                &state.x,
+                (&pose.tip, &pose.axis),
+                radius,
+            ),
+            super::footprint::tip_scale(patch(true), surface, &state.x, &pose.axis, radius),
+        ];
+        if scales.iter().all(|&s| s >= 1.0) {
+            return;
         }
+        let mut cut_total = Vector3::zeros();
+        for (&v, f) in held.iter().zip(report.held_reactions.iter_mut()) {
+            let cut = (1.0 - scales[usize::from(on_tip(v))]) * *f;
+            *f -= cut;
+            cut_total += cut;
+        }
+        report.reaction -= cut_total;
     }
 
     /// The shaft's neighbouring edges (§3): candidate edges with a held end that lie

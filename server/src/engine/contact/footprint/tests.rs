@@ -4,7 +4,7 @@
 use super::*;
 use crate::engine::mesh::TetMesh;
 use crate::engine::mesh::generate::kuhn_box;
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::{Point3, Rotation3, Vector3};
 
 /// Half the width of the test block's top face, m.
 const HALF: f64 = 0.02;
@@ -174,4 +174,143 @@ fn a_patch_within_the_tip_is_left_alone() {
     let pulled: Vec<_> = patch.iter().map(|&(v, f)| (v, -f)).collect();
     assert_eq!(scale(&mesh, &pulled, Vector3::z(), 0.001), 1.0);
     assert_eq!(scale(&mesh, &[], Vector3::z(), 0.001), 1.0);
+}
+
+/// Gauss's mean against his integral `∫₀^{π/2} dθ / √(a² cos²θ + b² sin²θ) = π / (2
+/// AGM(a, b))`, summed by the trapezoid rule (the integrand is smooth and periodic:
+/// 4,000 points are exact to rounding down to `b/a = 10⁻²`), and against the known
+/// `AGM(1, √2) = 1.198140234735592207…`.
+#[test]
+fn the_mean_of_gauss_is_his_elliptic_integral() {
+    let integral = |a: f64, b: f64| {
+        let n = 4000;
+        let h = std::f64::consts::FRAC_PI_2 / n as f64;
+        let f = |t: f64| 1.0 / (a * a * t.cos().powi(2) + b * b * t.sin().powi(2)).sqrt();
+        h * ((f(0.0) + f(std::f64::consts::FRAC_PI_2)) / 2.0
+            + (1..n).map(|k| f(k as f64 * h)).sum::<f64>())
+    };
+    for (a, b) in [
+        (1.0, 1.0),
+        (1.0, 0.5),
+        (0.03, 0.005),
+        (2.0, 0.02),
+        (1.0, 0.01),
+    ] {
+        let expected = std::f64::consts::FRAC_PI_2 / integral(a, b);
+        for m in [agm(a, b), agm(b, a)] {
+            assert!(
+                (m - expected).abs() <= 1e-12 * expected,
+                "AGM({a}, {b}) = {m}, the integral gives {expected}"
+            );
+        }
+    }
+    let gauss = 1.198_140_234_735_592_2;
+    assert!((agm(1.0, 2f64.sqrt()) - gauss).abs() <= 1e-15 * gauss);
+}
+
+/// The scale of `patch` under a shaft of radius `r` along `axis` through `on_axis`.
+fn strip_scale(
+    mesh: &TetMesh,
+    patch: &[(u32, Vector3<f64>)],
+    (on_axis, axis): (Point3<f64>, Vector3<f64>),
+    r: f64,
+) -> f64 {
+    shaft_scale(
+        patch.iter().copied(),
+        &mesh.surface,
+        &mesh.positions,
+        (&on_axis, &Unit::new_normalize(axis)),
+        r,
+    )
+}
+
+/// A shaft of radius `r` lying on the top face along x, turned by `turn`: a point of
+/// its axis and the axis.
+fn shaft(turn: &Rotation3<f64>, r: f64) -> (Point3<f64>, Vector3<f64>) {
+    (turn * Point3::new(0.0, 0.0, r), turn * Vector3::x())
+}
+
+/// The top face's rows within `half_width` of its middle line `y = 0`, each pushing
+/// the shaft `(on_axis, axis)` toward its axis with 0.3 N (a strip along x).
+fn strip(
+    mesh: &TetMesh,
+    turn: &Rotation3<f64>,
+    half_width: f64,
+    (on_axis, axis): (Point3<f64>, Vector3<f64>),
+) -> Vec<(u32, Vector3<f64>)> {
+    top(mesh, turn)
+        .into_iter()
+        .filter(|&v| (turn.inverse() * mesh.positions[v as usize]).y.abs() <= half_width + 1e-12)
+        .map(|v| {
+            let d = mesh.positions[v as usize] - on_axis;
+            (v, 0.3 * (d.dot(&axis) * axis - d).normalize())
+        })
+        .collect()
+}
+
+/// A strip of three rows (y = −5, 0, 5 mm) along the whole face under a shaft along
+/// x: its shares make a band 15 mm wide and 40 mm long, `A = 600 mm²` exactly (each
+/// triangle between the last row and the next has one or two corners in it, half of
+/// its square). Taken as a uniform rectangle, the equivalent ellipse has `a = L/√3`
+/// (the rectangle's second moment `L²/12 = a²/4`) and `b = A/(π a)`; the scale is
+/// `AGM(a, r)/AGM(a, b)`. The point shares sum the second moment by the trapezoid
+/// rule with each share's own spread, 4.5% above the rectangle's: the scale,
+/// logarithmic in `a`, within 1.5% of the rectangle's.
+/// Turning the block with the shaft changes nothing.
+#[test]
+fn a_strip_is_scaled_as_an_elliptical_punch() {
+    let r = 0.005;
+    let mesh = block(Rotation3::identity());
+    let line = shaft(&Rotation3::identity(), r);
+    let patch = strip(&mesh, &Rotation3::identity(), 0.005, line);
+    let s = strip_scale(&mesh, &patch, line, r);
+    let (length, area) = (2.0 * HALF, 2.0 * HALF * 0.015);
+    let a = length / 3f64.sqrt();
+    let b = area / (std::f64::consts::PI * a);
+    let expected = agm(a, r) / agm(a, b);
+    assert!(expected < 0.95, "the case should scale: {expected}");
+    assert!(
+        (s - expected).abs() <= 1.5e-2 * expected,
+        "{s} vs the rectangle's {expected}"
+    );
+
+    let turn = Rotation3::from_euler_angles(1.1, -0.7, 2.3);
+    let mesh = block(turn);
+    let line = shaft(&turn, r);
+    let patch = strip(&mesh, &turn, 0.005, line);
+    let turned = strip_scale(&mesh, &patch, line, r);
+    assert!((turned - s).abs() <= 1e-12 * s, "{turned} vs {s}");
+}
+
+/// The wider the strip, the smaller the scale, and always milder than the tip's rule
+/// would be for the same width (`r / b`): a line contact's force grows with its width
+/// only through a logarithm. A strip no wider than the shaft (one row, 5 mm of band
+/// for a 5 mm radius) is left alone, and nothing pushing is no strip.
+#[test]
+fn a_wider_strip_is_scaled_more_but_less_than_its_width() {
+    let r = 0.005;
+    let mesh = block(Rotation3::identity());
+    let line = shaft(&Rotation3::identity(), r);
+    let mut last = 1.0;
+    for rows in 1..=3 {
+        let half_width = 0.005 * f64::from(rows);
+        let patch = strip(&mesh, &Rotation3::identity(), half_width, line);
+        let s = strip_scale(&mesh, &patch, line, r);
+        let a = 2.0 * HALF / 3f64.sqrt();
+        let b = 2.0 * HALF * (2.0 * half_width + 0.005) / (std::f64::consts::PI * a);
+        assert!(s < last, "{rows} rows each side: {s} after {last}");
+        assert!(
+            s > r / b,
+            "{rows} rows each side: {s} against the width's {}",
+            r / b
+        );
+        last = s;
+    }
+    let one_row = strip(&mesh, &Rotation3::identity(), 0.0, line);
+    assert_eq!(strip_scale(&mesh, &one_row, line, r), 1.0);
+    let wide = strip(&mesh, &Rotation3::identity(), 0.01, line);
+    let pulled: Vec<_> = wide.iter().map(|&(v, f)| (v, -f)).collect();
+    assert!(strip_scale(&mesh, &wide, line, r) < 1.0);
+    assert_eq!(strip_scale(&mesh, &pulled, line, r), 1.0);
+    assert_eq!(strip_scale(&mesh, &[], line, r), 1.0);
 }
