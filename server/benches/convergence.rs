@@ -39,7 +39,13 @@
 //! Hertz, Sneddon's exact sphere and the bonded-layer correction (the set-up and the
 //! formulas: `server/tests/common/hertz.rs`, shared with the Hertz test).
 //!
-//! Flags: `--gestures-only`, `--hertz-only`, `--with-300k`.
+//! # The shaft on uniform blocks
+//!
+//! Then the shaft pressed 10 mm across the block meshed at 20, 10, 5 and 2.5 mm cells
+//! across it and in depth, unscaled and scaled to its strip (`contact.footprint`),
+//! against the block graded to 1 mm (`press_shaft` in `server/tests/common/hertz.rs`).
+//!
+//! Flags: `--gestures-only`, `--hertz-only`, `--stiffening-only`, `--with-300k`.
 
 mod common;
 
@@ -59,6 +65,8 @@ use indentation::*;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::mesh::TetMesh;
+use laparo_server::engine::mesh::generate::graded_lines_symmetric;
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -246,13 +254,77 @@ fn hertz_block() {
     }
 }
 
+/// The shaft pressed 10 mm across blocks of uniform cells (5 mm along the shaft), at
+/// 20, 10, 5 and 2.5 mm across it and in depth, against the block graded to 1 mm:
+/// how much of a coarse mesh's excess force the footprint scale takes out, and what
+/// is left. Each block is pressed 2.5, 5 then 10 mm, as the footprint test does; the
+/// graded block also straight to 5 then 10 mm, to show how much the held set (which
+/// keeps what it took while the pull stays under the adhesion) depends on the path.
+fn stiffening() {
+    const PATH: [f64; 3] = [2.5e-3, 5e-3, 10e-3];
+    let force = |mesh: TetMesh, footprint: bool, path: &[f64]| {
+        let mut sim = block_scene_on(mesh, footprint);
+        let mut last = None;
+        for &d in path {
+            last = Some(press_shaft(&mut sim, d));
+        }
+        last.expect("a path of one depth at least")
+    };
+    let graded = || {
+        shaft_block(
+            graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH),
+            depth_lines(1e-3, 7e-3, 1.4),
+        )
+    };
+    let reference = force(graded(), true, &PATH).force;
+    let shorter = force(graded(), true, &PATH[1..]).force;
+    println!(
+        "\nShaft pressed 10 mm across the block (80 × 80 × 60 mm, linear, static, no friction) by 2.5, 5 and 10 mm, against the block graded to 1 mm across it: {reference:.4} N (pressed by 5 and 10 mm: {shorter:.4} N, {:+.1}%)",
+        100.0 * (shorter / reference - 1.0)
+    );
+    println!(
+        "| cells across and in depth mm | tetrahedra | reaction N | vs graded | scaled N | vs graded | held | static passes (last change) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for h in [20e-3, 10e-3, 5e-3, 2.5e-3] {
+        let mesh = || {
+            shaft_block(
+                uniform_lines(-BLOCK_HALF_WIDTH, BLOCK_HALF_WIDTH, h),
+                uniform_lines(-BLOCK_DEPTH, 0.0, h),
+            )
+        };
+        let tets = mesh().tets.len();
+        let off = force(mesh(), false, &PATH);
+        let on = force(mesh(), true, &PATH);
+        println!(
+            "| {} | {tets} | {:.4} | {:+.1}% | {:.4} | {:+.1}% | {} | {} ({:.0e}) |",
+            h * 1e3,
+            off.force,
+            100.0 * (off.force / reference - 1.0),
+            on.force,
+            100.0 * (on.force / reference - 1.0),
+            on.held,
+            on.passes,
+            on.change
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    if !args.iter().any(|a| a == "--gestures-only") {
+    let only = |what: &str| args.iter().any(|a| a == what);
+    if only("--stiffening-only") {
+        stiffening();
+        return;
+    }
+    if !only("--gestures-only") {
         hertz_block();
     }
-    if args.iter().any(|a| a == "--hertz-only") {
+    if only("--hertz-only") {
         return;
+    }
+    if !only("--gestures-only") {
+        stiffening();
     }
     gestures();
 }

@@ -12,13 +12,8 @@
 mod common;
 
 use common::hertz::*;
-use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{
-    graded_lines, graded_lines_symmetric, kuhn_box, kuhn_grid,
-};
-use laparo_server::engine::simulation::Simulation;
-use nalgebra::{Point3, Unit, Vector3};
+use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_box};
 
 /// 10 mm cubes: the tip's press lays a whole 10 mm face on its plane.
 fn coarse() -> TetMesh {
@@ -105,44 +100,21 @@ fn a_press_gives_the_same_force_on_a_coarse_and_a_fine_block() {
     );
 }
 
-/// The shaft laid across the block's top face along −x, its tip 2 cm beyond the
-/// block's +x side (so only the shaft touches), its underside at height `z`.
-fn shaft_pose(sim: &Simulation, z: f64) -> InstrumentPose {
-    let r = sim.instruments[0].radius;
-    InstrumentPose::new(
-        Point3::new(BLOCK_HALF_WIDTH + 0.02, 0.0, z + r),
-        Unit::new_normalize(-Vector3::x()),
-    )
-}
-
-/// The force of the shaft pressed to each of `depths` in turn (static passes until it
-/// settles, as [`indent`] does for the tip), N, along +z.
+/// The force of the shaft pressed to each of `depths` in turn ([`press_shaft`]), N.
 fn shaft_presses(mesh: TetMesh, footprint: bool, depths: &[f64]) -> Vec<f64> {
     let mut sim = block_scene_on(mesh, footprint);
-    let above = shaft_pose(&sim, 0.005);
-    sim.set_pose(0, Some(above));
-    sim.tick();
     depths
         .iter()
         .enumerate()
         .map(|(k, &d)| {
-            let (mut last, mut change) = (f64::NAN, f64::NAN);
-            for _ in 0..MAX_PASSES {
-                let pose = shaft_pose(&sim, -d);
-                sim.set_pose(0, Some(pose));
-                sim.tick();
-                let f = sim.instruments[0].report.reaction.z;
-                change = (f - last).abs() / f.abs();
-                if change <= PASS_TOLERANCE {
-                    break;
-                }
-                last = f;
-            }
+            let i = press_shaft(&mut sim, d);
             assert!(
-                k == 0 || change <= PASS_TOLERANCE,
-                "the shaft never settled at {d} m (footprint {footprint}): last change {change:.1e}"
+                k == 0 || i.change <= PASS_TOLERANCE,
+                "the shaft never settled at {d} m (footprint {footprint}): {} passes, last change {:.1e}",
+                i.passes,
+                i.change
             );
-            sim.instruments[0].report.reaction.z
+            i.force
         })
         .collect()
 }
@@ -150,17 +122,10 @@ fn shaft_presses(mesh: TetMesh, footprint: bool, depths: &[f64]) -> Vec<f64> {
 /// 1 mm cells across the shaft and in depth within 7 mm of its line of contact,
 /// growing by 1.4 a cell outward; 5 mm along it.
 fn fine_across() -> TetMesh {
-    let x: Vec<f64> = (0..=16)
-        .map(|i| -BLOCK_HALF_WIDTH + f64::from(i) * 5e-3)
-        .collect();
-    let y = graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH);
-    let z: Vec<f64> = graded_lines(1e-3, 7e-3, 1.4, BLOCK_DEPTH)
-        .iter()
-        .rev()
-        .map(|d| -d)
-        .collect();
-    let (positions, tets) = kuhn_grid(&[x, y, z]);
-    TetMesh::from_tets(positions, tets).expect("the fine block is valid")
+    shaft_block(
+        graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH),
+        depth_lines(1e-3, 7e-3, 1.4),
+    )
 }
 
 /// The shaft's line contact, pressed 5 and 10 mm (one and two radii: the shaft half
@@ -170,7 +135,8 @@ fn fine_across() -> TetMesh {
 /// one and its own reaction, and within 25% of the fine one, where its reaction is
 /// 28% and 44% above it: the scale takes the strip's width out; the rest, about
 /// 20%, is the stiffness of linear tetrahedra two radii across the dimple, which
-/// the scale does not claim to correct (`engine/contact/footprint.rs`).
+/// the scale does not claim to correct (on uniform blocks it falls to 0.5% at
+/// half a radius: the convergence bench's `--stiffening-only`).
 #[test]
 fn a_shaft_press_on_a_coarse_block_is_scaled_toward_the_fine_one() {
     let depths = [2.5e-3, 5e-3, 10e-3];

@@ -47,13 +47,35 @@ pub fn block() -> TetMesh {
 /// its top face, growing by `growth` a cell outward (m).
 pub fn graded_block(h0: f64, core: f64, growth: f64) -> TetMesh {
     let x = graded_lines_symmetric(h0, core, growth, BLOCK_HALF_WIDTH);
-    let z: Vec<f64> = graded_lines(h0, core, growth, BLOCK_DEPTH)
+    let (positions, tets) = kuhn_grid(&[x.clone(), x, depth_lines(h0, core, growth)]);
+    TetMesh::from_tets(positions, tets).expect("the graded block is valid")
+}
+
+/// Heights of the grid lines from the block's base to its top face, graded to `h0`
+/// within `core` of the top and growing by `growth` a cell downward (m).
+pub fn depth_lines(h0: f64, core: f64, growth: f64) -> Vec<f64> {
+    graded_lines(h0, core, growth, BLOCK_DEPTH)
         .iter()
         .rev()
         .map(|d| -d)
-        .collect();
-    let (positions, tets) = kuhn_grid(&[x.clone(), x, z]);
-    TetMesh::from_tets(positions, tets).expect("the graded block is valid")
+        .collect()
+}
+
+/// Lines from `from` to `to` every `h` (m; `h` divides the span).
+pub fn uniform_lines(from: f64, to: f64, h: f64) -> Vec<f64> {
+    let n = ((to - from) / h).round() as usize;
+    (0..=n)
+        .map(|i| from + (to - from) * i as f64 / n as f64)
+        .collect()
+}
+
+/// A block of the same size for a shaft laid along x ([`press_shaft`]): 5 mm cells
+/// along the shaft (the strip's length, which every mesh resolves), lines `across` it
+/// (y) and `down` (z, from the base to the top face).
+pub fn shaft_block(across: Vec<f64>, down: Vec<f64>) -> TetMesh {
+    let along = uniform_lines(-BLOCK_HALF_WIDTH, BLOCK_HALF_WIDTH, 5e-3);
+    let (positions, tets) = kuhn_grid(&[along, across, down]);
+    TetMesh::from_tets(positions, tets).expect("the shaft's block is valid")
 }
 
 /// The block as a static scene with one frictionless instrument, its tip approached
@@ -85,6 +107,28 @@ pub fn block_scene_on(mesh: TetMesh, footprint: bool) -> Simulation {
     sim.set_pose(0, Some(pose(r + 0.005)));
     sim.tick();
     sim
+}
+
+/// The shaft laid across the block's top face along −x, its tip 2 cm beyond the
+/// block's +x side (so only the shaft touches), its underside at height `z`.
+fn shaft_pose(r: f64, z: f64) -> InstrumentPose {
+    InstrumentPose::new(
+        Point3::new(BLOCK_HALF_WIDTH + 0.02, 0.0, z + r),
+        Unit::new_normalize(-Vector3::x()),
+    )
+}
+
+/// Presses the shaft `d` into the block's top face (its underside `d` below it) and
+/// solves until the contact set settles, as [`indent`] does for the tip. A fresh
+/// scene's shaft starts 5 mm above the face, so that the stage sees the surface from
+/// outside first.
+pub fn press_shaft(sim: &mut Simulation, d: f64) -> Indentation {
+    let r = sim.instruments[0].radius;
+    if sim.instruments[0].held.is_empty() {
+        sim.set_pose(0, Some(shaft_pose(r, 0.005)));
+        sim.tick();
+    }
+    settle_at(sim, shaft_pose(r, -d))
 }
 
 /// The tip straight down (axis +z), its segment end `P` at height `z`.
@@ -138,10 +182,16 @@ pub struct Indentation {
 /// Indents the block `d` deep and solves until the contact set settles.
 pub fn indent(sim: &mut Simulation, d: f64) -> Indentation {
     let r = sim.instruments[0].radius;
+    settle_at(sim, pose(r - d))
+}
+
+/// Static passes at `pose` until the reaction along +z changes by less than
+/// [`PASS_TOLERANCE`] (or [`MAX_PASSES`] are spent).
+fn settle_at(sim: &mut Simulation, pose: InstrumentPose) -> Indentation {
     let (mut passes, mut cg_iterations) = (0, 0u64);
     let (mut last, mut change) = (f64::NAN, f64::NAN);
     for _ in 0..MAX_PASSES {
-        sim.set_pose(0, Some(pose(r - d)));
+        sim.set_pose(0, Some(pose));
         cg_iterations += u64::from(sim.tick().cg_iterations);
         passes += 1;
         let f = sim.instruments[0].report.reaction.z;

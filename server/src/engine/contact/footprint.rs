@@ -55,10 +55,14 @@
 //! falls within the instrument and the scale to 1. The deformed surface is the
 //! mesh's: the scale corrects the force for the patch the mesh holds, not the shape.
 //!
-//! What it does not correct: the stiffness of linear tetrahedra too coarse for the
-//! dimple, which is the rest of the shaft's 20% on the block. There, at one cell per
-//! radius the shaft's force is still 13% above the graded block's, and at half a
-//! radius within 1%; on the liver, liver-300k gives 0.79 N for the shaft (8% below
+//! What it leaves (the convergence bench's `--stiffening-only`): the shaft pressed
+//! 2.5, 5 then 10 mm across blocks of uniform cells gives, scaled, 37%, 19%, 12.5%
+//! and 0.5% more than on the graded block at cells of 20, 10, 5 and 2.5 mm (its
+//! reactions 84%, 46%, 14% and 0.5% more): linear tetrahedra a radius across and
+//! more are stiffer than the tissue, which the scale does not claim to correct. The
+//! held set itself depends on the path by as much as 11% (the graded block pressed
+//! straight to 5 then 10 mm: a held vertex stays while its pull is under the
+//! adhesion). On the liver, liver-300k gives 0.79 N for the shaft (8% below
 //! liver-80k) and 0.19 and 0.35 N for the tip (33% and 25% below).
 
 use nalgebra::{Point3, Unit, Vector3};
