@@ -1,5 +1,5 @@
-//! The tip's footprint: the press of the instrument's own tip, not of the patch of
-//! vertices the mesh holds.
+//! The instrument's footprint: the press of its own tip and shaft, not of the patch
+//! of vertices the mesh holds.
 //!
 //! The tip press (§2.5) lays the whole triangle under the tip on the tip plane, and
 //! the push-out holds the vertices nearest the instrument: a mesh whose edges are
@@ -45,8 +45,8 @@
 //! - the tip pressed 8 and 15 mm: the forces of liver-5k, liver-20k and liver-80k lie
 //!   within ±7.5% and ±3.3% of their mean, where the reactions themselves spread ±44%
 //!   and ±60%; SOFA's coarse liver lies 27% and 16% below that mean;
-//! - the shaft pressed 10 mm: within ±6.4%, where the reactions spread ±12.1%; SOFA's
-//!   liver, whose five held vertices make a strip 2.5 r wide, lies 28% below.
+//! - the shaft pressed 10 mm: within ±6.2%, where the reactions spread ±12.1%; SOFA's
+//!   liver, whose five held vertices make a strip 2.5 r wide, lies 29% below.
 //!
 //! On a block (`server/tests/contact_footprint.rs`) meshed at twice the radius, an
 //! 8 mm tip press gives within 5% of the force on a block graded to 1 mm, where its
