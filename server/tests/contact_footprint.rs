@@ -35,14 +35,20 @@ fn fine() -> TetMesh {
 /// neighbouring vertices past the pass limit.
 const DEPTHS: [f64; 4] = [2e-3, 4e-3, 6e-3, 8e-3];
 
-/// The force of the press at each of [`DEPTHS`], in turn, N.
-fn presses(mesh: TetMesh, footprint: bool) -> Vec<f64> {
+/// The force of `press` at each of `depths` in turn on a fresh block scene of `mesh`,
+/// each depth settled (the first may still be shifting, see [`DEPTHS`]), N.
+fn presses_with(
+    press: fn(&mut laparo_server::engine::simulation::Simulation, f64) -> Indentation,
+    mesh: TetMesh,
+    footprint: bool,
+    depths: &[f64],
+) -> Vec<f64> {
     let mut sim = block_scene_on(mesh, footprint);
-    DEPTHS
+    depths
         .iter()
         .enumerate()
         .map(|(k, &d)| {
-            let i = indent(&mut sim, d);
+            let i = press(&mut sim, d);
             assert!(
                 k == 0 || i.change <= PASS_TOLERANCE,
                 "never settled at {d} m (footprint {footprint}): {} passes, last change {:.1e}",
@@ -52,6 +58,11 @@ fn presses(mesh: TetMesh, footprint: bool) -> Vec<f64> {
             i.force
         })
         .collect()
+}
+
+/// The tip's force at each of [`DEPTHS`], in turn, N.
+fn presses(mesh: TetMesh, footprint: bool) -> Vec<f64> {
+    presses_with(indent, mesh, footprint, &DEPTHS)
 }
 
 /// At 8 mm (the tip's end wholly in the tissue) the coarse block's force is within
@@ -102,21 +113,7 @@ fn a_press_gives_the_same_force_on_a_coarse_and_a_fine_block() {
 
 /// The force of the shaft pressed to each of `depths` in turn ([`press_shaft`]), N.
 fn shaft_presses(mesh: TetMesh, footprint: bool, depths: &[f64]) -> Vec<f64> {
-    let mut sim = block_scene_on(mesh, footprint);
-    depths
-        .iter()
-        .enumerate()
-        .map(|(k, &d)| {
-            let i = press_shaft(&mut sim, d);
-            assert!(
-                k == 0 || i.change <= PASS_TOLERANCE,
-                "the shaft never settled at {d} m (footprint {footprint}): {} passes, last change {:.1e}",
-                i.passes,
-                i.change
-            );
-            i.force
-        })
-        .collect()
+    presses_with(press_shaft, mesh, footprint, depths)
 }
 
 /// 1 mm cells across the shaft and in depth within 7 mm of its line of contact,
