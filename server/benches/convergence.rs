@@ -45,7 +45,18 @@
 //! across it and in depth, unscaled and scaled to its strip (`contact.footprint`),
 //! against the block graded to 1 mm (`press_shaft` in `server/tests/common/hertz.rs`).
 //!
-//! Flags: `--gestures-only`, `--hertz-only`, `--stiffening-only`, `--with-300k`.
+//! Then the tip pressed 8 mm into blocks of uniform 20, 10 and 5 mm cubes, unscaled and
+//! scaled to its footprint, against the block graded to 1 mm under it.
+//!
+//! # Without friction
+//!
+//! `--frictionless` runs the gestures with the instrument's friction at 0 (the
+//! scene's is 1), for the calibrated model with the footprint scale only: how much of
+//! the refined livers' spread and of their distance to liver-300k comes from
+//! vertices that stick where the instrument first caught them.
+//!
+//! Flags: `--gestures-only`, `--hertz-only`, `--stiffening-only`, `--with-300k`,
+//! `--frictionless`.
 
 mod common;
 
@@ -66,7 +77,7 @@ use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::graded_lines_symmetric;
+use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_grid};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -126,11 +137,19 @@ struct Outcome {
     spread: f64,
 }
 
+/// Whether `--frictionless` was given: the instrument's friction set to 0.
+fn frictionless() -> bool {
+    std::env::args().any(|a| a == "--frictionless")
+}
+
 fn run(file: &str, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) -> Outcome {
     let mut scene = scene(file, IntegratorKind::Implicit, 1e-6);
     scene.mechanics.rate_hz = RATE_HZ;
     scene.force_model.kind = kind;
     scene.contact.footprint = footprint;
+    if frictionless() {
+        scene.instruments[0].friction = 0.0;
+    }
     let mut sim = build(&scene);
     for _ in 0..SETTLE_TICKS {
         sim.tick();
@@ -310,11 +329,59 @@ fn stiffening() {
     }
 }
 
+/// The tip pressed 8 mm (its hemispherical end wholly in) into blocks of uniform
+/// cubes of 20, 10 and 5 mm, against the block graded to 1 mm under the tip, unscaled
+/// and scaled to its footprint: what the tip's scale leaves of a coarse mesh's excess
+/// force, as [`stiffening`] shows for the shaft. Each block is pressed 2, 4, 6 then
+/// 8 mm, as the footprint test does.
+fn tip_stiffening() {
+    const PATH: [f64; 4] = [2e-3, 4e-3, 6e-3, 8e-3];
+    let force = |mesh: TetMesh, footprint: bool| {
+        let mut sim = block_scene_on(mesh, footprint);
+        let mut last = None;
+        for &d in &PATH {
+            last = Some(indent(&mut sim, d));
+        }
+        last.expect("a path of one depth at least")
+    };
+    let reference = force(graded_block(1e-3, 7e-3, 1.4), true).force;
+    println!(
+        "\nTip pressed 8 mm into the block (80 × 80 × 60 mm, linear, static, no friction) by 2, 4, 6 and 8 mm, against the block graded to 1 mm under the tip: {reference:.4} N"
+    );
+    println!(
+        "| cubes mm | tetrahedra | reaction N | vs graded | scaled N | vs graded | held | static passes (last change) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for h in [20e-3, 10e-3, 5e-3] {
+        let mesh = || {
+            let across = uniform_lines(-BLOCK_HALF_WIDTH, BLOCK_HALF_WIDTH, h);
+            let (positions, tets) =
+                kuhn_grid(&[across.clone(), across, uniform_lines(-BLOCK_DEPTH, 0.0, h)]);
+            TetMesh::from_tets(positions, tets).expect("the uniform block is valid")
+        };
+        let tets = mesh().tets.len();
+        let off = force(mesh(), false);
+        let on = force(mesh(), true);
+        println!(
+            "| {} | {tets} | {:.4} | {:+.1}% | {:.4} | {:+.1}% | {} | {} ({:.0e}) |",
+            h * 1e3,
+            off.force,
+            100.0 * (off.force / reference - 1.0),
+            on.force,
+            100.0 * (on.force / reference - 1.0),
+            on.held,
+            on.passes,
+            on.change
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let only = |what: &str| args.iter().any(|a| a == what);
     if only("--stiffening-only") {
         stiffening();
+        tip_stiffening();
         return;
     }
     if !only("--gestures-only") {
@@ -325,6 +392,7 @@ fn main() {
     }
     if !only("--gestures-only") {
         stiffening();
+        tip_stiffening();
     }
     gestures();
 }
@@ -343,19 +411,26 @@ fn gestures() {
     ];
     // Each force model, and the calibrated one with the tip's force scaled to its
     // footprint (scene `contact.footprint`).
-    let kinds = [
+    let all = [
         (ForceModelKind::Geometric, false),
         (ForceModelKind::Calibrated, false),
         (ForceModelKind::Calibrated, true),
     ];
+    // Without friction, only the row the bounds apply to.
+    let kinds = if frictionless() { &all[2..] } else { &all[..] };
     println!(
-        "Press on the default liver's free front, 60 Hz implicit, CG tol 1e-6, ramp 0.5 s, hold 1 s; values at the end of the hold"
+        "Press on the default liver's free front, 60 Hz implicit, CG tol 1e-6, ramp 0.5 s, hold 1 s; values at the end of the hold{}",
+        if frictionless() {
+            "; instrument friction 0 (the scene's is 1)"
+        } else {
+            ""
+        }
     );
     for gesture in gestures {
         println!("\n{}", gesture.label());
         println!("| mesh | force model | reaction N | rendered N | angle ° | held | spread % |");
         println!("|---|---|---|---|---|---|---|");
-        for (kind, footprint) in kinds {
+        for &(kind, footprint) in kinds {
             let label = format!("{kind:?}{}", if footprint { " + footprint" } else { "" });
             // |reaction| and |rendered| per mesh label.
             let mut reaction = Vec::new();
