@@ -315,18 +315,24 @@ fn stiffening() {
         let tets = mesh().tets.len();
         let off = force(mesh(), false, &PATH);
         let on = force(mesh(), true, &PATH);
-        println!(
-            "| {} | {tets} | {:.4} | {:+.1}% | {:.4} | {:+.1}% | {} | {} ({:.0e}) |",
-            h * 1e3,
-            off.force,
-            100.0 * (off.force / reference - 1.0),
-            on.force,
-            100.0 * (on.force / reference - 1.0),
-            on.held,
-            on.passes,
-            on.change
-        );
+        block_row(h, tets, (&off, &on), reference);
     }
+}
+
+/// A row of the uniform blocks' tables: cell size `h` (m), tetrahedra, the press's
+/// force unscaled and scaled, each against the graded block's `reference` (N).
+fn block_row(h: f64, tets: usize, (off, on): (&Indentation, &Indentation), reference: f64) {
+    println!(
+        "| {} | {tets} | {:.4} | {:+.1}% | {:.4} | {:+.1}% | {} | {} ({:.0e}) |",
+        h * 1e3,
+        off.force,
+        100.0 * (off.force / reference - 1.0),
+        on.force,
+        100.0 * (on.force / reference - 1.0),
+        on.held,
+        on.passes,
+        on.change
+    );
 }
 
 /// The tip pressed 8 mm (its hemispherical end wholly in) into blocks of uniform
@@ -362,17 +368,7 @@ fn tip_stiffening() {
         let tets = mesh().tets.len();
         let off = force(mesh(), false);
         let on = force(mesh(), true);
-        println!(
-            "| {} | {tets} | {:.4} | {:+.1}% | {:.4} | {:+.1}% | {} | {} ({:.0e}) |",
-            h * 1e3,
-            off.force,
-            100.0 * (off.force / reference - 1.0),
-            on.force,
-            100.0 * (on.force / reference - 1.0),
-            on.held,
-            on.passes,
-            on.change
-        );
+        block_row(h, tets, (&off, &on), reference);
     }
 }
 
