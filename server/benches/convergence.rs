@@ -77,7 +77,7 @@ use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_grid};
+use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_box};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -282,12 +282,9 @@ fn hertz_block() {
 fn stiffening() {
     const PATH: [f64; 3] = [2.5e-3, 5e-3, 10e-3];
     let force = |mesh: TetMesh, footprint: bool, path: &[f64]| {
-        let mut sim = block_scene_on(mesh, footprint);
-        let mut last = None;
-        for &d in path {
-            last = Some(press_shaft(&mut sim, d));
-        }
-        last.expect("a path of one depth at least")
+        press_along(mesh, footprint, press_shaft, path)
+            .pop()
+            .expect("a path of one depth at least")
     };
     let graded = || {
         shaft_block(
@@ -343,12 +340,9 @@ fn block_row(h: f64, tets: usize, (off, on): (&Indentation, &Indentation), refer
 fn tip_stiffening() {
     const PATH: [f64; 4] = [2e-3, 4e-3, 6e-3, 8e-3];
     let force = |mesh: TetMesh, footprint: bool| {
-        let mut sim = block_scene_on(mesh, footprint);
-        let mut last = None;
-        for &d in &PATH {
-            last = Some(indent(&mut sim, d));
-        }
-        last.expect("a path of one depth at least")
+        press_along(mesh, footprint, indent, &PATH)
+            .pop()
+            .expect("a path of one depth at least")
     };
     let reference = force(graded_block(1e-3, 7e-3, 1.4), true).force;
     println!(
@@ -360,9 +354,13 @@ fn tip_stiffening() {
     println!("|---|---|---|---|---|---|---|---|");
     for h in [20e-3, 10e-3, 5e-3] {
         let mesh = || {
-            let across = uniform_lines(-BLOCK_HALF_WIDTH, BLOCK_HALF_WIDTH, h);
-            let (positions, tets) =
-                kuhn_grid(&[across.clone(), across, uniform_lines(-BLOCK_DEPTH, 0.0, h)]);
+            let across = (2.0 * BLOCK_HALF_WIDTH / h).round() as usize;
+            let down = (BLOCK_DEPTH / h).round() as usize;
+            let (positions, tets) = kuhn_box(
+                [across, across, down],
+                [2.0 * BLOCK_HALF_WIDTH, 2.0 * BLOCK_HALF_WIDTH, BLOCK_DEPTH],
+                [-BLOCK_HALF_WIDTH, -BLOCK_HALF_WIDTH, -BLOCK_DEPTH],
+            );
             TetMesh::from_tets(positions, tets).expect("the uniform block is valid")
         };
         let tets = mesh().tets.len();

@@ -37,18 +37,12 @@ const DEPTHS: [f64; 4] = [2e-3, 4e-3, 6e-3, 8e-3];
 
 /// The force of `press` at each of `depths` in turn on a fresh block scene of `mesh`,
 /// each depth settled (the first may still be shifting, see [`DEPTHS`]), N.
-fn presses_with(
-    press: fn(&mut laparo_server::engine::simulation::Simulation, f64) -> Indentation,
-    mesh: TetMesh,
-    footprint: bool,
-    depths: &[f64],
-) -> Vec<f64> {
-    let mut sim = block_scene_on(mesh, footprint);
-    depths
-        .iter()
+fn presses_with(press: Press, mesh: TetMesh, footprint: bool, depths: &[f64]) -> Vec<f64> {
+    press_along(mesh, footprint, press, depths)
+        .into_iter()
+        .zip(depths)
         .enumerate()
-        .map(|(k, &d)| {
-            let i = press(&mut sim, d);
+        .map(|(k, (i, d))| {
             assert!(
                 k == 0 || i.change <= PASS_TOLERANCE,
                 "never settled at {d} m (footprint {footprint}): {} passes, last change {:.1e}",

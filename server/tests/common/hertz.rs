@@ -179,6 +179,22 @@ pub struct Indentation {
     pub cg_iterations: u64,
 }
 
+/// A press of the block scene's instrument `d` deep (m), settled: [`indent`] for the
+/// tip, [`press_shaft`] for the shaft.
+pub type Press = fn(&mut Simulation, f64) -> Indentation;
+
+/// A fresh block scene on `mesh` (its force scaled to the footprint or not) pressed
+/// by `press` to each of `depths` in turn: the outcomes, in order.
+pub fn press_along(
+    mesh: TetMesh,
+    footprint: bool,
+    press: Press,
+    depths: &[f64],
+) -> Vec<Indentation> {
+    let mut sim = block_scene_on(mesh, footprint);
+    depths.iter().map(|&d| press(&mut sim, d)).collect()
+}
+
 /// Indents the block `d` deep and solves until the contact set settles.
 pub fn indent(sim: &mut Simulation, d: f64) -> Indentation {
     let r = sim.instruments[0].radius;
