@@ -77,7 +77,6 @@ use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_box};
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -286,14 +285,8 @@ fn stiffening() {
             .pop()
             .expect("a path of one depth at least")
     };
-    let graded = || {
-        shaft_block(
-            graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH),
-            depth_lines(1e-3, 7e-3, 1.4),
-        )
-    };
-    let reference = force(graded(), true, &PATH).force;
-    let shorter = force(graded(), true, &PATH[1..]).force;
+    let reference = force(graded_shaft_block(), true, &PATH).force;
+    let shorter = force(graded_shaft_block(), true, &PATH[1..]).force;
     println!(
         "\nShaft pressed 10 mm across the block (80 × 80 × 60 mm, linear, static, no friction) by 2.5, 5 and 10 mm, against the block graded to 1 mm across it: {reference:.4} N (pressed by 5 and 10 mm: {shorter:.4} N, {:+.1}%)",
         100.0 * (shorter / reference - 1.0)
@@ -353,16 +346,7 @@ fn tip_stiffening() {
     );
     println!("|---|---|---|---|---|---|---|---|");
     for h in [20e-3, 10e-3, 5e-3] {
-        let mesh = || {
-            let across = (2.0 * BLOCK_HALF_WIDTH / h).round() as usize;
-            let down = (BLOCK_DEPTH / h).round() as usize;
-            let (positions, tets) = kuhn_box(
-                [across, across, down],
-                [2.0 * BLOCK_HALF_WIDTH, 2.0 * BLOCK_HALF_WIDTH, BLOCK_DEPTH],
-                [-BLOCK_HALF_WIDTH, -BLOCK_HALF_WIDTH, -BLOCK_DEPTH],
-            );
-            TetMesh::from_tets(positions, tets).expect("the uniform block is valid")
-        };
+        let mesh = || uniform_block(h);
         let tets = mesh().tets.len();
         let off = force(mesh(), false);
         let on = force(mesh(), true);

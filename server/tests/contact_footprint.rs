@@ -13,16 +13,10 @@ mod common;
 
 use common::hertz::*;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{graded_lines_symmetric, kuhn_box};
 
 /// 10 mm cubes: the tip's press lays a whole 10 mm face on its plane.
 fn coarse() -> TetMesh {
-    let (positions, tets) = kuhn_box(
-        [8, 8, 6],
-        [2.0 * BLOCK_HALF_WIDTH, 2.0 * BLOCK_HALF_WIDTH, BLOCK_DEPTH],
-        [-BLOCK_HALF_WIDTH, -BLOCK_HALF_WIDTH, -BLOCK_DEPTH],
-    );
-    TetMesh::from_tets(positions, tets).expect("the coarse block is valid")
+    uniform_block(10e-3)
 }
 
 /// 1 mm cells within 7 mm of the tip, growing by 1.4 a cell outward.
@@ -110,15 +104,6 @@ fn shaft_presses(mesh: TetMesh, footprint: bool, depths: &[f64]) -> Vec<f64> {
     presses_with(press_shaft, mesh, footprint, depths)
 }
 
-/// 1 mm cells across the shaft and in depth within 7 mm of its line of contact,
-/// growing by 1.4 a cell outward; 5 mm along it.
-fn fine_across() -> TetMesh {
-    shaft_block(
-        graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH),
-        depth_lines(1e-3, 7e-3, 1.4),
-    )
-}
-
 /// The shaft's line contact, pressed 5 and 10 mm (one and two radii: the shaft half
 /// and wholly sunk, the strip it presses `2r` wide), on the 10 mm block and on one
 /// graded to 1 mm across the shaft. The fine block's strip lies within the shaft: the
@@ -131,8 +116,8 @@ fn fine_across() -> TetMesh {
 #[test]
 fn a_shaft_press_on_a_coarse_block_is_scaled_toward_the_fine_one() {
     let depths = [2.5e-3, 5e-3, 10e-3];
-    let fine_on = shaft_presses(fine_across(), true, &depths);
-    let fine_off = shaft_presses(fine_across(), false, &depths);
+    let fine_on = shaft_presses(graded_shaft_block(), true, &depths);
+    let fine_off = shaft_presses(graded_shaft_block(), false, &depths);
     let coarse_on = shaft_presses(coarse(), true, &depths);
     let coarse_off = shaft_presses(coarse(), false, &depths);
     for (k, d) in depths.iter().enumerate().skip(1) {

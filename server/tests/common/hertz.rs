@@ -23,7 +23,9 @@ use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::Formulation;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::mesh::TetMesh;
-use laparo_server::engine::mesh::generate::{graded_lines, graded_lines_symmetric, kuhn_grid};
+use laparo_server::engine::mesh::generate::{
+    graded_lines, graded_lines_symmetric, kuhn_box, kuhn_grid,
+};
 use laparo_server::engine::scene::limits::max_cg_iterations;
 use laparo_server::engine::scene::{BoxSpec, Scene};
 use laparo_server::engine::simulation::Simulation;
@@ -51,6 +53,18 @@ pub fn graded_block(h0: f64, core: f64, growth: f64) -> TetMesh {
     TetMesh::from_tets(positions, tets).expect("the graded block is valid")
 }
 
+/// The block in uniform cubes of `h` (m; `h` divides its sides).
+pub fn uniform_block(h: f64) -> TetMesh {
+    let across = (2.0 * BLOCK_HALF_WIDTH / h).round() as usize;
+    let down = (BLOCK_DEPTH / h).round() as usize;
+    let (positions, tets) = kuhn_box(
+        [across, across, down],
+        [2.0 * BLOCK_HALF_WIDTH, 2.0 * BLOCK_HALF_WIDTH, BLOCK_DEPTH],
+        [-BLOCK_HALF_WIDTH, -BLOCK_HALF_WIDTH, -BLOCK_DEPTH],
+    );
+    TetMesh::from_tets(positions, tets).expect("the uniform block is valid")
+}
+
 /// Heights of the grid lines from the block's base to its top face, graded to `h0`
 /// within `core` of the top and growing by `growth` a cell downward (m).
 pub fn depth_lines(h0: f64, core: f64, growth: f64) -> Vec<f64> {
@@ -76,6 +90,15 @@ pub fn shaft_block(across: Vec<f64>, down: Vec<f64>) -> TetMesh {
     let along = uniform_lines(-BLOCK_HALF_WIDTH, BLOCK_HALF_WIDTH, 5e-3);
     let (positions, tets) = kuhn_grid(&[along, across, down]);
     TetMesh::from_tets(positions, tets).expect("the shaft's block is valid")
+}
+
+/// The shaft's block graded to 1 mm across the shaft and in depth within 7 mm of its
+/// line of contact, growing by 1.4 a cell outward; 5 mm along it.
+pub fn graded_shaft_block() -> TetMesh {
+    shaft_block(
+        graded_lines_symmetric(1e-3, 7e-3, 1.4, BLOCK_HALF_WIDTH),
+        depth_lines(1e-3, 7e-3, 1.4),
+    )
 }
 
 /// The block as a static scene with one frictionless instrument, its tip approached
