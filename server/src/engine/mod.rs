@@ -5,7 +5,8 @@
 //! [`local_model`] (reaction forces, paper §3), [`scene`] (what a scene declares),
 //! [`simulation`] (a scene built, and its tick: the stages in order).
 //!
-//! Each stage imports only the stages before it in that list.
+//! Each stage imports only the stages before it in that list; any may use
+//! [`workers`], the threads a stage shares its loops with.
 
 pub mod contact;
 pub mod elastic;
@@ -15,6 +16,7 @@ pub mod material;
 pub mod mesh;
 pub mod scene;
 pub mod simulation;
+pub mod workers;
 
 #[cfg(test)]
 pub(crate) mod testing;
