@@ -8,10 +8,11 @@
 //! the other: settled under gravity for 0.5 s (untimed), then the left instrument's
 //! tip presses straight in (axis +z) at the front point from 2 mm outside, 2 cm/s for
 //! 1 s, then holds for 0.25 s. Every tick of the press and hold is timed
-//! (`Simulation::tick`); the table gives medians, one core.
+//! (`Simulation::tick`); the table gives medians, one core unless `LAPARO_THREADS`
+//! says more.
 //!
 //! Columns: median whole tick and ticks/s; the slowest tick; median elastic step; CG iterations per
-//! tick (median); the corotational update alone (rotations of every element,
+//! tick (median); the corotational update alone, on the scene's threads (rotations of every element,
 //! re-assembly of `K̂` and the offset), as a tick pays it: replayed afterwards over
 //! the positions each press and hold tick started from, in order, so that each call
 //! is warm-started from the rotations of the tick before (median; calling it again
@@ -23,6 +24,10 @@
 //! max_i |u_i^static|`. It holds the integrator's error and what is left of the
 //! physical transient after the 0.25 s hold (mass damping 10/s leaves e^{−1.25}
 //! ≈ 0.29 of a mode excited at the end of the press).
+//!
+//! `LAPARO_THREADS=2` runs every scene on two threads (`[mechanics] threads`: the
+//! mesh renumbered when loaded, the product and the update shared by parts), the
+//! update's column too; the default is one.
 //!
 //! `-- liver-300k` (or any labels) runs those meshes instead of the default three;
 //! liver-300k's ticks take seconds, so it is not run unless asked.
@@ -48,9 +53,10 @@ use std::time::Instant;
 use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
-use laparo_server::engine::elastic::{Formulation, TANGENT_TURN};
+use laparo_server::engine::elastic::{Formulation, Parts, TANGENT_TURN};
 use laparo_server::engine::integrate::{Integrator, IntegratorKind, PreconditionerKind};
 use laparo_server::engine::simulation::Simulation;
+use laparo_server::engine::workers::Workers;
 use nalgebra::{Unit, Vector3};
 
 const SETTLE_TICKS: usize = 30;
@@ -66,6 +72,7 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let labels = requested_labels(&["sofa-liver", "liver-20k", "liver-80k"]);
+    let threads = threads();
     for case in meshes(&labels) {
         let runs = [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg]
             .into_iter()
@@ -83,6 +90,7 @@ fn main() {
             let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
             scene.material.model = model;
             scene.mechanics.preconditioner = preconditioner;
+            scene.mechanics.threads = threads;
             let mut sim = build(&scene);
             if let Some(turn) = turn {
                 sim.integrator.set_tangent_turn(turn);
@@ -110,15 +118,21 @@ fn main() {
             }
             let update = match sim.model.corotated() {
                 Some(mut c) => {
-                    let mut out = vec![Vector3::zeros(); sim.model.vertex_count()];
+                    let n = sim.model.vertex_count();
+                    // The parts and threads the scene's tick used.
+                    let parts = sim.integrator.parts();
+                    let tets = sim.model.elements.iter().map(|e| e.tet);
+                    c.set_parts(Parts::new(n, parts, tets));
+                    let crew = (parts > 1).then(|| Workers::new(parts).expect("1 to 64 parts"));
+                    let mut out = vec![Vector3::zeros(); n];
                     // The first call starts from rest rotations: not timed.
                     let turn = turn.unwrap_or(0.0);
-                    c.update_tangent_within(&sim.model, &starts[0], &mut out, turn);
+                    c.update_shared(&sim.model, &starts[0], &mut out, turn, crew.as_ref());
                     let mut times: Vec<f64> = starts[1..]
                         .iter()
                         .map(|x| {
                             let t = Instant::now();
-                            c.update_tangent_within(&sim.model, x, &mut out, turn);
+                            c.update_shared(&sim.model, x, &mut out, turn, crew.as_ref());
                             since(t) * 1e3
                         })
                         .collect();
@@ -172,6 +186,14 @@ fn main() {
             );
         }
     }
+}
+
+/// `LAPARO_THREADS` (the scene's `[mechanics] threads`), 1 unless set.
+fn threads() -> usize {
+    std::env::var("LAPARO_THREADS")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(1)
 }
 
 /// [`TANGENT_TURN`], or `LAPARO_TANGENT_TURN` (rad) to measure another.

@@ -59,38 +59,66 @@ fn ticks_allocate_nothing() {
         scene.mechanics.integrator = kind;
         scene.material.model = model;
         scene.mechanics.preconditioner = preconditioner;
-        let mut sim = scene.build().unwrap();
-        assert_eq!(
-            sim.integrator.used_amg(),
-            kind != IntegratorKind::Explicit && preconditioner == PreconditionerKind::Amg
-        );
-        // Move some vertices as an instrument would, so imposed targets change too.
-        let held: Vec<u32> = (0..sim.mesh.vertex_count() as u32)
-            .filter(|i| !sim.fixed.contains(i))
-            .take(5)
-            .collect();
+        ticks_allocate_nothing_on(scene);
+    }
+}
+
+/// The same on two threads: liver-5k split into two parts, the workers taking
+/// chunks of the same loops. (The count is of this thread's allocations; a chunk
+/// runs the same code on whichever thread takes it.)
+#[test]
+fn shared_ticks_allocate_nothing() {
+    for kind in [IntegratorKind::Explicit, IntegratorKind::Implicit] {
+        for model in [Formulation::Linear, Formulation::Corotational] {
+            let mut scene = Scene::default_scene();
+            scene.mesh.file = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh").into();
+            scene.mechanics.integrator = kind;
+            scene.mechanics.preconditioner = PreconditionerKind::BlockJacobi;
+            scene.material.model = model;
+            scene.mechanics.threads = 2;
+            ticks_allocate_nothing_on(scene);
+        }
+    }
+}
+
+/// Twenty ticks of `scene`, five vertices moved and then released, allocate nothing.
+fn ticks_allocate_nothing_on(scene: Scene) {
+    let (kind, model, preconditioner) = (
+        scene.mechanics.integrator,
+        scene.material.model,
+        scene.mechanics.preconditioner,
+    );
+    let mut sim = scene.build().unwrap();
+    assert_eq!(
+        sim.integrator.used_amg(),
+        kind != IntegratorKind::Explicit && preconditioner == PreconditionerKind::Amg
+    );
+    // Move some vertices as an instrument would, so imposed targets change too.
+    let held: Vec<u32> = (0..sim.mesh.vertex_count() as u32)
+        .filter(|i| !sim.fixed.contains(i))
+        .take(5)
+        .collect();
+    sim.tick();
+    let before = allocations();
+    for k in 0..20 {
+        for &i in &held {
+            let push = Vector3::new(0.0, 0.0, -0.0002 * k as f64);
+            sim.imposed.set(i, sim.model.rest[i as usize] + push);
+        }
         sim.tick();
-        let before = allocations();
-        for k in 0..20 {
+        if k == 10 {
             for &i in &held {
-                let push = Vector3::new(0.0, 0.0, -0.0002 * k as f64);
-                sim.imposed.set(i, sim.model.rest[i as usize] + push);
-            }
-            sim.tick();
-            if k == 10 {
-                for &i in &held {
-                    sim.imposed.release(i);
-                }
+                sim.imposed.release(i);
             }
         }
-        let after = allocations();
-        assert_eq!(
-            after - before,
-            0,
-            "{kind:?} {model:?} {preconditioner:?}: {} allocations in 20 ticks",
-            after - before
-        );
     }
+    let after = allocations();
+    assert_eq!(
+        after - before,
+        0,
+        "{kind:?} {model:?} {preconditioner:?}: {} allocations in 20 ticks",
+        after - before
+    );
 }
 
 #[test]

@@ -45,11 +45,15 @@
 //! ([`Corotated::update_tangent_within`]); the force `f₀` always uses the rotations
 //! of the tick. Static solves reassemble all of `K̂` on every update.
 
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+
 use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
+use super::parts::Parts;
 use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation, polar};
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
+use crate::engine::workers::{Disjoint, Workers, share};
 
 /// The vertex pairs `(a, b)` of a tetrahedron whose blocks are stored: the four
 /// diagonal ones, then the six edges, each with `a ≤ b`. An element's vertices are
@@ -116,14 +120,15 @@ impl Element {
 
     /// Adds `m g_k` to `out` at each vertex `k` (`m = V R σ` gives the negated elastic
     /// force), with `g₀ = −(g₁ + g₂ + g₃)` applied as `−(m g₁ + m g₂ + m g₃)`.
+    /// `add(v, f)` adds `f` to vertex `v`'s entry.
     #[inline]
-    fn scatter(&self, m: &Matrix3<f64>, out: &mut [Vector3<f64>]) {
+    fn scatter(&self, m: &Matrix3<f64>, mut add: impl FnMut(usize, Vector3<f64>)) {
         let [g1, g2, g3] = self.g;
         let (f1, f2, f3) = (m * g1, m * g2, m * g3);
-        out[self.tet[0] as usize] -= f1 + f2 + f3;
-        out[self.tet[1] as usize] += f1;
-        out[self.tet[2] as usize] += f2;
-        out[self.tet[3] as usize] += f3;
+        add(self.tet[0] as usize, -(f1 + f2 + f3));
+        add(self.tet[1] as usize, f1);
+        add(self.tet[2] as usize, f2);
+        add(self.tet[3] as usize, f3);
     }
 
     /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
@@ -140,8 +145,9 @@ impl Element {
     /// (`ĝ_a · ĝ_b = g_a · g_b`: a rotation keeps dot products). Written as
     /// `(Vλ ĝ_a) ĝ_bᵀ + ĝ_b (Vμ ĝ_a)ᵀ` with the scaled gradients formed once per
     /// vertex, a block costs two products and two sums per entry.
+    /// `add(k, b)` adds `b` to stored block `k`.
     #[inline]
-    fn add_blocks(&self, r: &Matrix3<f64>, blocks: &mut [Matrix3<f64>]) {
+    fn add_blocks(&self, r: &Matrix3<f64>, mut add: impl FnMut(usize, Matrix3<f64>)) {
         let [g1, g2, g3] = self.g;
         let (h1, h2, h3) = (r * g1, r * g2, r * g3);
         let h = [-(h1 + h2 + h3), h1, h2, h3];
@@ -154,7 +160,7 @@ impl Element {
             block.m11 += d;
             block.m22 += d;
             block.m33 += d;
-            blocks[slot as usize] += block;
+            add(slot as usize, block);
         }
     }
 
@@ -164,7 +170,12 @@ impl Element {
     /// replacement costs about what one assembly does and reads and writes each
     /// block once.
     #[inline]
-    fn replace_blocks(&self, old: &Matrix3<f64>, new: &Matrix3<f64>, blocks: &mut [Matrix3<f64>]) {
+    fn replace_blocks(
+        &self,
+        old: &Matrix3<f64>,
+        new: &Matrix3<f64>,
+        mut add: impl FnMut(usize, Matrix3<f64>),
+    ) {
         let [g1, g2, g3] = self.g;
         let rotated = |r: &Matrix3<f64>| {
             let (h1, h2, h3) = (r * g1, r * g2, r * g3);
@@ -175,9 +186,12 @@ impl Element {
         let (lh, mh) = (h.map(|h| vl * h), h.map(|h| vm * h));
         let (lk, mk) = (k.map(|k| vl * k), k.map(|k| vm * k));
         for (&(a, b), &slot) in PAIRS.iter().zip(&self.slot) {
-            blocks[slot as usize] += lh[a] * h[b].transpose() + h[b] * mh[a].transpose()
-                - lk[a] * k[b].transpose()
-                - k[b] * mk[a].transpose();
+            add(
+                slot as usize,
+                lh[a] * h[b].transpose() + h[b] * mh[a].transpose()
+                    - lk[a] * k[b].transpose()
+                    - k[b] * mk[a].transpose(),
+            );
         }
     }
 }
@@ -389,6 +403,8 @@ pub struct Corotated {
     force_at: Vec<Vector3<f64>>,
     /// How many elements' shares of `K̂` the last update assembled.
     reassembled: usize,
+    /// The elements split for threads (one part unless [`set_parts`](Self::set_parts)).
+    parts: Parts,
 }
 
 impl Corotated {
@@ -401,6 +417,11 @@ impl Corotated {
             at: model.rest.clone(),
             force_at: vec![Vector3::zeros(); model.vertex_count()],
             reassembled: 0,
+            parts: Parts::new(
+                model.vertex_count(),
+                1,
+                model.elements.iter().map(|e| e.tet),
+            ),
         }
     }
 
@@ -429,15 +450,7 @@ impl Corotated {
     /// writes `out = K̂ u + o = Σ_e R_e K_e (R_eᵀ x_e − X_e)`, the negated elastic
     /// force at `x` (N), which is kept with `x` for [`row`](Self::row).
     pub fn update(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
-        self.tangent
-            .block
-            .iter_mut()
-            .for_each(|b| *b = Matrix3::zeros());
-        self.update_with(model, x, out, |e, q, qa, blocks| {
-            *qa = *q;
-            e.add_blocks(q.to_rotation_matrix().matrix(), blocks);
-            true
-        });
+        self.update_shared(model, x, out, 0.0, None);
     }
 
     /// As [`update`](Self::update), but the share of `K̂` of an element that has
@@ -455,59 +468,88 @@ impl Corotated {
         out: &mut [Vector3<f64>],
         turn: f64,
     ) {
+        self.update_shared(model, x, out, turn, None);
+    }
+
+    /// [`update_tangent_within`](Self::update_tangent_within), each part of
+    /// [`set_parts`](Self::set_parts) handled by one of `workers` (see [`Parts`]).
+    pub fn update_shared(
+        &mut self,
+        model: &ElasticModel,
+        x: &[Point3<f64>],
+        out: &mut [Vector3<f64>],
+        turn: f64,
+        workers: Option<&Workers>,
+    ) {
         if turn <= 0.0 {
-            return self.update(model, x, out);
+            self.tangent
+                .block
+                .iter_mut()
+                .for_each(|b| *b = Matrix3::zeros());
+            self.update_with(model, x, out, workers, |e, q, qa, add| {
+                *qa = *q;
+                e.add_blocks(q.to_rotation_matrix().matrix(), add);
+                true
+            });
+            return;
         }
         // |q · q′| = cos(θ/2) for the turn θ between the rotations q and q′.
         let cos_half = (0.5 * turn).cos();
-        self.update_with(model, x, out, |e, q, qa, blocks| {
+        self.update_with(model, x, out, workers, |e, q, qa, add| {
             if q.coords.dot(&qa.coords).abs() >= cos_half {
                 return false;
             }
             let (old, new) = (qa.to_rotation_matrix(), q.to_rotation_matrix());
-            e.replace_blocks(old.matrix(), new.matrix(), blocks);
+            e.replace_blocks(old.matrix(), new.matrix(), add);
             *qa = *q;
             true
         });
     }
 
+    /// Splits the update's elements into `parts` (built on this model's elements),
+    /// for [`update_shared`](Self::update_shared). The default is one part.
+    pub fn set_parts(&mut self, parts: Parts) {
+        self.parts = parts;
+    }
+
     /// The pass both updates make: each element's rotation extracted (warm-started)
     /// and its force added to `out`, then `tangent(element, rotation, assembled
-    /// rotation, K̂'s blocks)`, which says whether it assembled the element's share;
-    /// `x` and `out` kept for [`row`](Self::row).
+    /// rotation, add to K̂'s block)`, which says whether it assembled the element's
+    /// share; `x` and `out` kept for [`row`](Self::row).
     #[inline]
     fn update_with(
         &mut self,
         model: &ElasticModel,
         x: &[Point3<f64>],
         out: &mut [Vector3<f64>],
-        mut tangent: impl FnMut(
+        workers: Option<&Workers>,
+        tangent: impl Fn(
             &Element,
             &UnitQuaternion<f64>,
             &mut UnitQuaternion<f64>,
-            &mut [Matrix3<f64>],
-        ) -> bool,
+            &mut dyn FnMut(usize, Matrix3<f64>),
+        ) -> bool
+        + Sync,
     ) {
-        out.iter_mut().for_each(|o| *o = Vector3::zeros());
-        let mut reassembled = 0;
-        for ((e, q), qa) in model
-            .elements
-            .iter()
-            .zip(&mut self.rotation)
-            .zip(&mut self.assembled)
-        {
-            let f = e.deformation_gradient(x);
-            let p = polar(&f, q, WARM_ITERATIONS);
-            e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
-            if tangent(e, q, qa, &mut self.tangent.block) {
-                reassembled += 1;
-            }
-        }
-        self.reassembled = reassembled;
+        let blocks = Disjoint::new(&mut self.tangent.block);
+        let assembled = Disjoint::new(&mut self.assembled);
+        self.reassembled = each_element(
+            model,
+            &self.parts,
+            &mut self.rotation,
+            x,
+            out,
+            workers,
+            |e, k, q| {
+                // SAFETY: element `k`'s blocks lie in the rows of its part's vertices
+                // (or it is a crossing element, handled alone), and `k` is its own.
+                let qa = unsafe { assembled.at(k) };
+                tangent(e, q, qa, &mut |slot, b| unsafe { *blocks.at(slot) += b })
+            },
+        );
         self.at.copy_from_slice(x);
         self.force_at.copy_from_slice(out);
     }
-
     /// Row `i` of `K̂ u + o` at `x` with the rotations of the last
     /// [`update`](Self::update): `f₀_i + Σ_j K̂_ij (x_j − x₀_j)`, N (exact: with
     /// the rotations frozen the force is affine in `x`). The reaction on an imposed
@@ -530,11 +572,66 @@ impl Corotated {
     /// `out = Σ_e R_e K_e (R_eᵀ x_e − X_e)` (the negated elastic force, N), leaving
     /// `K̂`, `x₀` and `f₀` as they were: what an explicit substep needs.
     pub fn force(&mut self, model: &ElasticModel, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
-        out.iter_mut().for_each(|o| *o = Vector3::zeros());
-        for (e, q) in model.elements.iter().zip(&mut self.rotation) {
-            let f = e.deformation_gradient(x);
-            let p = polar(&f, q, WARM_ITERATIONS);
-            e.scatter(&(e.volume * p.r * e.stress(&p.a)), out);
-        }
+        self.force_shared(model, x, out, None);
     }
+
+    /// [`force`](Self::force), shared among `workers` as
+    /// [`update_shared`](Self::update_shared) is.
+    pub fn force_shared(
+        &mut self,
+        model: &ElasticModel,
+        x: &[Point3<f64>],
+        out: &mut [Vector3<f64>],
+        workers: Option<&Workers>,
+    ) {
+        each_element(
+            model,
+            &self.parts,
+            &mut self.rotation,
+            x,
+            out,
+            workers,
+            |_, _, _| false,
+        );
+    }
+}
+
+/// Extracts each element's rotation at `x` (warm-started from `rotation`) and adds
+/// its force to `out` (zeroed first), then calls `then(element, index, rotation)`;
+/// returns how many calls said true. The elements of each of `parts` run on one of
+/// `workers`, then the crossing ones on this thread.
+fn each_element(
+    model: &ElasticModel,
+    parts: &Parts,
+    rotation: &mut [UnitQuaternion<f64>],
+    x: &[Point3<f64>],
+    out: &mut [Vector3<f64>],
+    workers: Option<&Workers>,
+    then: impl Fn(&Element, usize, &UnitQuaternion<f64>) -> bool + Sync,
+) -> usize {
+    out.iter_mut().for_each(|o| *o = Vector3::zeros());
+    let forces = Disjoint::new(out);
+    let rotations = Disjoint::new(rotation);
+    let counted = AtomicUsize::new(0);
+    let run = |group: &[u32]| {
+        let mut count = 0;
+        for &k in group {
+            let k = k as usize;
+            let e = &model.elements[k];
+            // SAFETY: every element of a part has its four vertices in it, and
+            // element `k` is its own: no other part touches these entries.
+            let q = unsafe { rotations.at(k) };
+            let p = polar(&e.deformation_gradient(x), q, WARM_ITERATIONS);
+            e.scatter(&(e.volume * p.r * e.stress(&p.a)), |v, f| unsafe {
+                *forces.at(v) += f
+            });
+            if then(e, k, q) {
+                count += 1;
+            }
+        }
+        counted.fetch_add(count, Relaxed);
+    };
+    share(workers, parts.count(), &|t| run(parts.elements(t)));
+    run(parts.crossing());
+    counted.into_inner()
 }

@@ -17,11 +17,13 @@
 
 mod assemble;
 pub mod corotational;
+pub mod parts;
 pub mod rotation;
 mod stress;
 
 pub use assemble::{shape_gradients, tet_stiffness};
 pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
+pub use parts::{MIN_PART_VERTICES, Parts, part_count};
 pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
 
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -29,6 +31,7 @@ use serde::{Deserialize, Serialize};
 
 use super::material::Material;
 use super::mesh::TetMesh;
+use super::workers::{Disjoint, Workers, share};
 
 /// How the elastic force depends on the vertex positions.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -223,6 +226,63 @@ impl BlockMatrix {
             }
             out[i] += acc;
         }
+    }
+
+    /// `out = a ∘ u + s K u`, that is `out_i = a_i u_i + s Σ_j K_ij u_j` (the
+    /// implicit step's `(1 + hα) M + h² K` is `a_i = (1 + hα) m_i`, `s = h²`), each
+    /// part of `parts` computed by one of `workers` (see [`parts`]).
+    ///
+    /// A part walks its rows in order like [`mul`](Self::mul): the upper blocks of row
+    /// `i` add `K_ij u_j` to row `i`, and `K_ijᵀ u_i` to row `j` when `j` is in the
+    /// same part (columns ascend, so those come first); the lower blocks `K_ji`
+    /// (`j < i`) of a `j` in an earlier part are read from row `i`'s side instead.
+    /// With one part this is [`mul`](Self::mul)'s arithmetic in its order, to the
+    /// last bit. Allocation-free.
+    pub fn mul_shared(
+        &self,
+        workers: Option<&Workers>,
+        parts: &Parts,
+        a: impl Fn(usize) -> f64 + Sync,
+        s: f64,
+        u: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
+        assert_eq!(u.len(), self.rows());
+        assert_eq!(out.len(), self.rows());
+        let cells = Disjoint::new(out);
+        share(workers, parts.count(), &|t| {
+            let rows = parts.range(t);
+            // SAFETY: the parts' ranges are disjoint, and `u` is not `out`.
+            let out = unsafe { cells.range(rows.clone()) };
+            let at = |i: usize| i - rows.start;
+            out.iter_mut().for_each(|o| *o = Vector3::zeros());
+            for i in rows.clone() {
+                let (b, e) = (self.row_start[i] as usize, self.row_start[i + 1] as usize);
+                let ui = u[i];
+                let mut acc = self.block[b] * ui;
+                for (k, &c) in self.block[b + 1..e].iter().zip(&self.col[b + 1..e]) {
+                    let c = c as usize;
+                    acc += k * u[c];
+                    if c < rows.end {
+                        out[at(c)] += k.tr_mul(&ui);
+                    }
+                }
+                let (b, e) = (
+                    self.lower_start[i] as usize,
+                    self.lower_start[i + 1] as usize,
+                );
+                for (&k, &j) in self.lower_block[b..e].iter().zip(&self.lower_row[b..e]) {
+                    if j as usize >= rows.start {
+                        break;
+                    }
+                    acc += self.block[k as usize].tr_mul(&u[j as usize]);
+                }
+                out[at(i)] += acc;
+            }
+            for (o, i) in out.iter_mut().zip(rows.clone()) {
+                *o = a(i) * u[i] + s * *o;
+            }
+        });
     }
 
     /// Bytes held by the matrix (for memory reports).
@@ -432,5 +492,7 @@ impl ElasticModel {
 mod tests;
 #[cfg(test)]
 mod tests_corotational;
+#[cfg(test)]
+mod tests_shared;
 #[cfg(test)]
 mod tests_tangent;

@@ -9,10 +9,14 @@
 //! set, one V-cycle of smoothed-aggregation multigrid ([`Amg`]) whose finest level
 //! smooths with the solve's own operator and those inverse blocks.
 
+use std::ops::Range;
+
 use nalgebra::{Matrix3, Vector3};
 
 use super::Interrupt;
 use super::amg::Amg;
+use crate::engine::elastic::Parts;
+use crate::engine::workers::{Disjoint, Workers, share};
 
 /// Buffers of one CG solve, allocated once.
 #[derive(Clone, Debug)]
@@ -29,6 +33,11 @@ pub struct CgWorkspace {
     pub use_amg: bool,
     /// Read before each iteration: a raised flag ends the solve (unconverged).
     pub interrupt: Interrupt,
+    /// The ranges the vector updates of [`solve_shared`](Self::solve_shared) are
+    /// shared by (one part unless [`set_parts`](Self::set_parts)).
+    parts: Parts,
+    /// Each part's partial sums of the dot products of one update.
+    partial: Vec<[f64; 2]>,
 }
 
 /// When a solve stops.
@@ -63,7 +72,15 @@ impl CgWorkspace {
             amg: None,
             use_amg: false,
             interrupt: Interrupt::default(),
+            parts: Parts::new(n, 1, std::iter::empty()),
+            partial: vec![[0.0; 2]; 1],
         }
+    }
+
+    /// Shares the vector updates of later solves by `parts` (of the same vertices).
+    pub fn set_parts(&mut self, parts: Parts) {
+        self.partial = vec![[0.0; 2]; parts.count()];
+        self.parts = parts;
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -81,6 +98,23 @@ impl CgWorkspace {
     /// zero. `apply(v, out)` must write `out = A v`.
     pub fn solve(
         &mut self,
+        apply: impl Fn(&[Vector3<f64>], &mut [Vector3<f64>]),
+        imposed: &[bool],
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        stop: Stop,
+    ) -> CgReport {
+        self.solve_shared(None, apply, imposed, b, x, stop)
+    }
+
+    /// [`solve`](Self::solve), the vector updates of each iteration shared among
+    /// `workers` by the parts of [`set_parts`](Self::set_parts) (the product is
+    /// `apply`'s to share). Each part's dot products are summed over its range and the
+    /// partial sums added in part order: with one part, the sequential sums to the
+    /// last bit. The multigrid cycle itself runs on this thread.
+    pub fn solve_shared(
+        &mut self,
+        workers: Option<&Workers>,
         apply: impl Fn(&[Vector3<f64>], &mut [Vector3<f64>]),
         imposed: &[bool],
         b: &[Vector3<f64>],
@@ -137,13 +171,19 @@ impl CgWorkspace {
                 break;
             }
             apply(&self.p, &mut self.q);
-            let mut pq = 0.0;
-            for i in 0..n {
-                if imposed[i] {
-                    self.q[i] = Vector3::zeros();
+            let (p, q) = (&self.p, Disjoint::new(&mut self.q));
+            let [pq, _] = over_parts(workers, &self.parts, &mut self.partial, |rows| {
+                // SAFETY: each part writes its own range.
+                let q = unsafe { q.range(rows.clone()) };
+                let mut pq = 0.0;
+                for (q, i) in q.iter_mut().zip(rows) {
+                    if imposed[i] {
+                        *q = Vector3::zeros();
+                    }
+                    pq += p[i].dot(q);
                 }
-                pq += self.p[i].dot(&self.q[i]);
-            }
+                [pq, 0.0]
+            });
             if pq <= 0.0 || !pq.is_normal() {
                 // A is SPD on the free set, so this is a breakdown from round-off at a
                 // converged residual (or one sunk into subnormals, whose quotient would
@@ -169,18 +209,42 @@ impl CgWorkspace {
                     rz_new = rz;
                 }
             } else {
-                for i in 0..n {
-                    x[i] += alpha * self.p[i];
-                    self.r[i] -= alpha * self.q[i];
-                    self.z[i] = self.precond[i] * self.r[i];
-                    rz_new += self.r[i].dot(&self.z[i]);
-                    rr += self.r[i].norm_squared();
-                }
+                let (p, q, precond) = (&self.p, &self.q, &self.precond);
+                let (xs, r, z) = (
+                    Disjoint::new(x),
+                    Disjoint::new(&mut self.r),
+                    Disjoint::new(&mut self.z),
+                );
+                [rz_new, rr] = over_parts(workers, &self.parts, &mut self.partial, |rows| {
+                    // SAFETY: each part writes its own range.
+                    let (x, r, z) = unsafe {
+                        (
+                            xs.range(rows.clone()),
+                            r.range(rows.clone()),
+                            z.range(rows.clone()),
+                        )
+                    };
+                    let (mut rz, mut rr) = (0.0, 0.0);
+                    for (k, i) in rows.enumerate() {
+                        x[k] += alpha * p[i];
+                        r[k] -= alpha * q[i];
+                        z[k] = precond[i] * r[k];
+                        rz += r[k].dot(&z[k]);
+                        rr += r[k].norm_squared();
+                    }
+                    [rz, rr]
+                });
             }
             let beta = rz_new / rz;
-            for i in 0..n {
-                self.p[i] = self.z[i] + beta * self.p[i];
-            }
+            let (z, p) = (&self.z, Disjoint::new(&mut self.p));
+            over_parts(workers, &self.parts, &mut self.partial, |rows| {
+                // SAFETY: each part writes its own range.
+                let p = unsafe { p.range(rows.clone()) };
+                for (p, i) in p.iter_mut().zip(rows) {
+                    *p = z[i] + beta * *p;
+                }
+                [0.0; 2]
+            });
             rz = rz_new;
             r_norm = rr.sqrt();
             iterations += 1;
@@ -191,6 +255,24 @@ impl CgWorkspace {
             converged: r_norm <= goal,
         }
     }
+}
+
+/// Runs `sums(range)` for each part's range, on `workers`, and adds the partial
+/// sums it returns in part order (from zero: with one part, its sums exactly).
+fn over_parts(
+    workers: Option<&Workers>,
+    parts: &Parts,
+    partial: &mut [[f64; 2]],
+    sums: impl Fn(Range<usize>) -> [f64; 2] + Sync,
+) -> [f64; 2] {
+    let cells = Disjoint::new(partial);
+    // SAFETY: part `t` writes slot `t` only.
+    share(workers, parts.count(), &|t| unsafe {
+        *cells.at(t) = sums(parts.range(t))
+    });
+    partial
+        .iter()
+        .fold([0.0, 0.0], |a, p| [a[0] + p[0], a[1] + p[1]])
 }
 
 /// Euclidean norm of a block vector.

@@ -30,6 +30,7 @@ use nalgebra::{Matrix3, Vector3};
 use super::cg::{Stop, free_norm};
 use super::{Imposed, Integrator, State, StepReport};
 use crate::engine::elastic::ElasticModel;
+use crate::engine::workers::{Disjoint, share};
 
 pub(super) fn step(
     it: &mut Integrator,
@@ -47,7 +48,13 @@ pub(super) fn step(
     let corotational = it.corotated.is_some();
     let k = match &mut it.corotated {
         Some(c) => {
-            c.update_tangent_within(model, &state.x, &mut it.f, it.tangent_turn);
+            c.update_shared(
+                model,
+                &state.x,
+                &mut it.f,
+                it.tangent_turn,
+                it.workers.as_ref(),
+            );
             &c.tangent
         }
         None => {
@@ -56,12 +63,19 @@ pub(super) fn step(
             &model.stiffness
         }
     };
+    let (workers, parts) = (it.workers.as_ref(), &it.parts);
     if corotational || it.preconditioned_for != h {
-        for i in 0..model.vertex_count() {
-            let a_ii = Matrix3::identity() * (mass_factor * model.mass[i])
-                + h * h * k.block[k.diag[i] as usize];
-            it.cg.precond[i] = a_ii.try_inverse().unwrap_or_else(Matrix3::identity);
-        }
+        let precond = Disjoint::new(&mut it.cg.precond);
+        share(workers, parts.count(), &|t| {
+            let rows = parts.range(t);
+            // SAFETY: each part writes its own range.
+            let precond = unsafe { precond.range(rows.clone()) };
+            for (p, i) in precond.iter_mut().zip(rows) {
+                let a_ii = Matrix3::identity() * (mass_factor * model.mass[i])
+                    + h * h * k.block[k.diag[i] as usize];
+                *p = a_ii.try_inverse().unwrap_or_else(Matrix3::identity);
+            }
+        });
         it.preconditioned_for = if corotational { f64::NAN } else { h };
     }
     // f = b = M v₀ + h (M g − K u₀).
@@ -95,12 +109,17 @@ pub(super) fn step(
     }
     let reference = momentum.sqrt() + h * (weight.sqrt() + elastic.sqrt()) + free_norm(&it.w, mask);
     let apply = |p: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
-        k.mul(p, out);
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = mass_factor * model.mass[i] * p[i] + h * h * *o;
-        }
+        k.mul_shared(
+            workers,
+            parts,
+            |i| mass_factor * model.mass[i],
+            h * h,
+            p,
+            out,
+        );
     };
-    let report = it.cg.solve(
+    let report = it.cg.solve_shared(
+        workers,
         apply,
         mask,
         &it.f,

@@ -35,7 +35,8 @@ use std::sync::atomic::AtomicBool;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::elastic::{BlockMatrix, Corotated, ElasticModel, TANGENT_TURN};
+use super::elastic::{BlockMatrix, Corotated, ElasticModel, Parts, TANGENT_TURN, part_count};
+use super::workers::Workers;
 
 /// The deformable body's state.
 #[derive(Clone, Debug)]
@@ -97,6 +98,10 @@ pub struct IntegratorConfig {
     /// stable for `h ω_max < 2`; the bound already over-estimates `ω_max`, and the 0.9
     /// default keeps a margin for round-off.
     pub explicit_safety: f64,
+    /// Threads the implicit solve shares its products, vector updates and
+    /// corotational update with, the calling thread included (see [`Workers`]): the
+    /// mesh is split into [`part_count`] parts, fewer than `threads` if small.
+    pub threads: usize,
 }
 
 impl Default for IntegratorConfig {
@@ -108,6 +113,7 @@ impl Default for IntegratorConfig {
             cg_max_iterations: 1000,
             preconditioner: PreconditionerKind::default(),
             explicit_safety: 0.9,
+            threads: 1,
         }
     }
 }
@@ -124,6 +130,22 @@ pub struct StepReport {
     pub relative_residual: f64,
     /// Whether the solve met its tolerance within the iteration cap.
     pub converged: bool,
+}
+
+/// The workers for `parts` parts, the caller included: one a part, but no more than
+/// the machine's cores (a session's threads would only take turns on one core, each
+/// spinning while it waits), none for one part, and none if they cannot be
+/// started. Results depend on the parts, not on how many threads run them, so
+/// neither cap changes them.
+fn crew(parts: usize) -> Option<Workers> {
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    let running = parts.min(cores);
+    if running <= 1 {
+        return None;
+    }
+    Workers::new(running)
+        .map_err(|e| tracing::warn!("mechanics runs on one thread: {e}"))
+        .ok()
 }
 
 /// An integrator with its preallocated workspace.
@@ -155,6 +177,11 @@ pub struct Integrator {
     /// The turn below which the implicit and explicit steps keep an element's share
     /// of `K̂` (rad, [`TANGENT_TURN`] unless set).
     tangent_turn: f64,
+    /// The threads of [`IntegratorConfig::threads`] besides the caller's (`None`
+    /// for one thread).
+    workers: Option<Workers>,
+    /// The vertices and elements split among them (one part for one thread).
+    parts: Parts,
 }
 
 impl Integrator {
@@ -162,6 +189,18 @@ impl Integrator {
     pub fn new(config: IntegratorConfig, model: &ElasticModel) -> Self {
         let n = model.vertex_count();
         let explicit_h_max = config.explicit_safety * 2.0 / model.max_eigenvalue_bound().sqrt();
+        let count = part_count(model.vertex_count(), config.threads);
+        let parts = Parts::new(
+            model.vertex_count(),
+            count,
+            model.elements.iter().map(|e| e.tet),
+        );
+        let mut cg = CgWorkspace::new(n);
+        cg.set_parts(parts.clone());
+        let mut corotated = model.corotated();
+        if let Some(c) = &mut corotated {
+            c.set_parts(parts.clone());
+        }
         Integrator {
             config,
             explicit_h_max,
@@ -169,13 +208,15 @@ impl Integrator {
             f: vec![Vector3::zeros(); n],
             w: vec![Vector3::zeros(); n],
             start: vec![Point3::origin(); n],
-            cg: CgWorkspace::new(n),
+            cg,
             preconditioned_for: f64::NAN,
-            uses_amg: config.preconditioner.uses_amg(n),
+            uses_amg: config.preconditioner.uses_amg(n, count),
             amg_failed: None,
             interrupt: Interrupt::default(),
-            corotated: model.corotated(),
+            corotated,
             tangent_turn: TANGENT_TURN,
+            workers: crew(count),
+            parts,
         }
     }
 
@@ -184,7 +225,13 @@ impl Integrator {
     /// for a linear model.
     fn freeze_rotations(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         if let Some(c) = &mut self.corotated {
-            c.update_tangent_within(model, x, &mut self.f, self.tangent_turn);
+            c.update_shared(
+                model,
+                x,
+                &mut self.f,
+                self.tangent_turn,
+                self.workers.as_ref(),
+            );
         }
     }
 
@@ -206,7 +253,7 @@ impl Integrator {
     /// extracted at `x` (corotational): the negated elastic force at `x`, N.
     fn exact_negated_elastic_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         match &mut self.corotated {
-            Some(c) => c.force(model, x, &mut self.f),
+            Some(c) => c.force_shared(model, x, &mut self.f, self.workers.as_ref()),
             None => {
                 for ((u, x), r) in self.u.iter_mut().zip(x).zip(&model.rest) {
                     *u = x - r;
@@ -239,6 +286,11 @@ impl Integrator {
     pub fn set_interrupt(&mut self, flag: Arc<AtomicBool>) {
         self.interrupt = Interrupt::new(flag);
         self.cg.interrupt = self.interrupt.clone();
+    }
+
+    /// Into how many parts the mesh is split for threads ([`part_count`]).
+    pub fn parts(&self) -> usize {
+        self.parts.count()
     }
 
     /// The settings.
@@ -323,6 +375,7 @@ impl Integrator {
             + self.start.capacity() * 24
             + self.cg.heap_bytes()
             + self.corotated.as_ref().map_or(0, Corotated::heap_bytes)
+            + self.parts.heap_bytes()
     }
 }
 

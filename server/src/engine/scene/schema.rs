@@ -11,6 +11,7 @@ use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::elastic::Formulation;
 use crate::engine::integrate::{IntegratorKind, PreconditionerKind};
 use crate::engine::local_model::ForceModelKind;
+use crate::engine::workers::MAX_THREADS;
 
 /// A scene as declared in its TOML file.
 #[derive(Clone, Debug, Deserialize)]
@@ -147,10 +148,20 @@ pub struct MechanicsSpec {
     /// The conjugate-gradient preconditioner (implicit and static): `"auto"` (the
     /// default: multigrid on meshes of at least
     /// [`AUTO_AMG_VERTICES`](crate::engine::integrate::AUTO_AMG_VERTICES) vertices,
-    /// block Jacobi on smaller ones), `"block-jacobi"` or `"amg"` (smoothed-aggregation
+    /// block Jacobi on smaller ones and whenever `threads` splits the mesh),
+    /// `"block-jacobi"` or `"amg"` (smoothed-aggregation
     /// multigrid, built when the scene is).
     #[serde(default)]
     pub preconditioner: PreconditionerKind,
+    /// Threads an implicit tick shares its products, vector updates and corotational
+    /// update with, this session's mechanics thread included (1 to
+    /// [`MAX_THREADS`](crate::engine::workers::MAX_THREADS); default 1; no more run
+    /// than the machine has cores). A mesh is split into one part a thread, each of
+    /// at least [`MIN_PART_VERTICES`](crate::engine::elastic::MIN_PART_VERTICES)
+    /// vertices, and then renumbered when loaded; results differ from one part's in
+    /// the last bits.
+    #[serde(default = "default_threads")]
+    pub threads: usize,
 }
 
 impl Default for MechanicsSpec {
@@ -162,6 +173,7 @@ impl Default for MechanicsSpec {
             cg_tolerance: default_cg_tolerance(),
             cg_max_iterations: default_cg_max_iterations(),
             preconditioner: PreconditionerKind::default(),
+            threads: default_threads(),
         }
     }
 }
@@ -275,6 +287,10 @@ fn default_rate() -> f64 {
 fn default_damping() -> f64 {
     10.0
 }
+fn default_threads() -> usize {
+    1
+}
+
 fn default_cg_tolerance() -> f64 {
     1e-4
 }
@@ -428,6 +444,12 @@ impl Scene {
                     "{} is outside [1, {MAX_CG_ITERATIONS}] (the work of a tick is bounded)",
                     m.cg_max_iterations
                 ),
+            ));
+        }
+        if !(1..=MAX_THREADS).contains(&m.threads) {
+            return Err(self.invalid(
+                "mechanics.threads",
+                format!("{} is outside [1, {MAX_THREADS}]", m.threads),
             ));
         }
         if self.instruments.len() > MAX_INSTRUMENTS {

@@ -41,6 +41,7 @@ impl Scene {
             cg_tolerance: m.cg_tolerance,
             cg_max_iterations: m.cg_max_iterations,
             preconditioner: m.preconditioner,
+            threads: m.threads,
             ..IntegratorConfig::default()
         };
         let mut integrator = Integrator::new(config, &model);

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use crate::engine::elastic::part_count;
 use crate::engine::mesh::{MeshError, MeshErrorKind, TetMesh, read_gmsh, reverse_cuthill_mckee};
 use crate::engine::scene::{
     BUILTIN_MESHES, FileError, MAX_MESH_BYTES, Scene, SceneError, read_bounded,
@@ -16,16 +17,19 @@ use crate::engine::scene::{
 /// `K̂` about 9 MB, within this machine's 32 MB cache) the tick is unchanged; on
 /// liver-300k (60k vertices, `K̂` about 33 MB) it is shorter. Below the threshold
 /// the file's numbering is kept, so that the surface of a smaller scene, and every
-/// recording made of it, keeps its vertex order.
+/// recording made of it, keeps its vertex order, unless the scene splits the mesh
+/// among threads: they share it by ranges of vertex indices
+/// ([`crate::engine::elastic::parts`]), which need the locality.
 pub const RENUMBER_VERTICES: usize = 32_768;
 
 /// The scene's mesh in metres: `mesh.file` read, renumbered from
-/// [`RENUMBER_VERTICES`] vertices up, scaled by `mesh.scale`, and with `mesh.center`
+/// [`RENUMBER_VERTICES`] vertices up or when split among threads, scaled by `mesh.scale`, and with `mesh.center`
 /// its bounding-box centre moved to the origin; its extent checked against the scene
 /// limits.
 pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
     let mut mesh = read(scene)?;
-    if mesh.vertex_count() >= RENUMBER_VERTICES {
+    let n = mesh.vertex_count();
+    if n >= RENUMBER_VERTICES || part_count(n, scene.mechanics.threads) > 1 {
         mesh = mesh.renumbered(&reverse_cuthill_mckee(mesh.vertex_count(), &mesh.edges));
     }
     mesh.scale(scene.mesh.scale);

@@ -96,6 +96,8 @@ fn out_of_range_values_are_named_with_their_path() {
         ("damping = -1.0", "mechanics.damping"),
         ("cg_tolerance = 0.0", "mechanics.cg_tolerance"),
         ("cg_max_iterations = 0", "mechanics.cg_max_iterations"),
+        ("threads = 0", "mechanics.threads"),
+        ("threads = 65", "mechanics.threads"),
     ];
     for (line, path) in mech {
         expect_path(parse(&format!("{MINIMAL}\n[mechanics]\n{line}\n")), path);
@@ -149,6 +151,13 @@ fn the_elastic_model_is_linear_unless_the_scene_says_corotational() {
         let scene = Scene::load(&scene_dir().join(file)).unwrap();
         assert_eq!(scene.material.model, model, "{file}");
     }
+}
+
+#[test]
+fn a_scene_runs_on_one_thread_unless_it_says_more() {
+    assert_eq!(parse(MINIMAL).unwrap().mechanics.threads, 1);
+    let two = parse(&format!("{MINIMAL}\n[mechanics]\nthreads = 2\n")).unwrap();
+    assert_eq!(two.mechanics.threads, 2);
 }
 
 #[test]
