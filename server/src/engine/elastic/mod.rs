@@ -26,6 +26,8 @@ pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
 pub use parts::{MIN_PART_VERTICES, Parts, part_count};
 pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
 
+use std::ops::Range;
+
 use nalgebra::{Matrix3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -215,16 +217,39 @@ impl BlockMatrix {
     /// `K_ij u_j` to row `i` and `K_ijᵀ u_i` to row `j`. Allocation-free.
     pub fn mul(&self, u: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
         debug_assert_eq!(u.len(), self.rows());
+        self.mul_rows(0..self.rows(), u, out);
+    }
+
+    /// Rows `rows` of `K u` into `out` (which holds those rows), walked in order:
+    /// the upper blocks of row `i` add `K_ij u_j` to row `i`, and `K_ijᵀ u_i` to row
+    /// `j` when `j` is in `rows` (columns ascend, so those come first); the lower
+    /// blocks `K_ji` (`j < i`) of a `j` before `rows` are read from row `i`'s side
+    /// instead. Over all rows this is one pass over the stored blocks.
+    fn mul_rows(&self, rows: Range<usize>, u: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
+        let at = |i: usize| i - rows.start;
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
-        for i in 0..self.rows() {
-            let (s, e) = (self.row_start[i] as usize, self.row_start[i + 1] as usize);
+        for i in rows.clone() {
+            let (b, e) = (self.row_start[i] as usize, self.row_start[i + 1] as usize);
             let ui = u[i];
-            let mut acc = self.block[s] * ui;
-            for (b, &c) in self.block[s + 1..e].iter().zip(&self.col[s + 1..e]) {
-                acc += b * u[c as usize];
-                out[c as usize] += b.tr_mul(&ui);
+            let mut acc = self.block[b] * ui;
+            for (k, &c) in self.block[b + 1..e].iter().zip(&self.col[b + 1..e]) {
+                let c = c as usize;
+                acc += k * u[c];
+                if c < rows.end {
+                    out[at(c)] += k.tr_mul(&ui);
+                }
             }
-            out[i] += acc;
+            let (b, e) = (
+                self.lower_start[i] as usize,
+                self.lower_start[i + 1] as usize,
+            );
+            for (&k, &j) in self.lower_block[b..e].iter().zip(&self.lower_row[b..e]) {
+                if j as usize >= rows.start {
+                    break;
+                }
+                acc += self.block[k as usize].tr_mul(&u[j as usize]);
+            }
+            out[at(i)] += acc;
         }
     }
 
@@ -232,12 +257,9 @@ impl BlockMatrix {
     /// implicit step's `(1 + hα) M + h² K` is `a_i = (1 + hα) m_i`, `s = h²`), each
     /// part of `parts` computed by one of `workers` (see [`parts`]).
     ///
-    /// A part walks its rows in order like [`mul`](Self::mul): the upper blocks of row
-    /// `i` add `K_ij u_j` to row `i`, and `K_ijᵀ u_i` to row `j` when `j` is in the
-    /// same part (columns ascend, so those come first); the lower blocks `K_ji`
-    /// (`j < i`) of a `j` in an earlier part are read from row `i`'s side instead.
-    /// With one part this is [`mul`](Self::mul)'s arithmetic in its order, to the
-    /// last bit. Allocation-free.
+    /// A part computes its rows as [`mul`](Self::mul) computes all of them: with
+    /// one part this is [`mul`](Self::mul)'s arithmetic in its order, to the last
+    /// bit. Allocation-free.
     pub fn mul_shared(
         &self,
         workers: Option<&Workers>,
@@ -254,31 +276,7 @@ impl BlockMatrix {
             let rows = parts.range(t);
             // SAFETY: the parts' ranges are disjoint, and `u` is not `out`.
             let out = unsafe { cells.range(rows.clone()) };
-            let at = |i: usize| i - rows.start;
-            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-            for i in rows.clone() {
-                let (b, e) = (self.row_start[i] as usize, self.row_start[i + 1] as usize);
-                let ui = u[i];
-                let mut acc = self.block[b] * ui;
-                for (k, &c) in self.block[b + 1..e].iter().zip(&self.col[b + 1..e]) {
-                    let c = c as usize;
-                    acc += k * u[c];
-                    if c < rows.end {
-                        out[at(c)] += k.tr_mul(&ui);
-                    }
-                }
-                let (b, e) = (
-                    self.lower_start[i] as usize,
-                    self.lower_start[i + 1] as usize,
-                );
-                for (&k, &j) in self.lower_block[b..e].iter().zip(&self.lower_row[b..e]) {
-                    if j as usize >= rows.start {
-                        break;
-                    }
-                    acc += self.block[k as usize].tr_mul(&u[j as usize]);
-                }
-                out[at(i)] += acc;
-            }
+            self.mul_rows(rows.clone(), u, out);
             for (o, i) in out.iter_mut().zip(rows.clone()) {
                 *o = a(i) * u[i] + s * *o;
             }
