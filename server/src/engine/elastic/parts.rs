@@ -12,10 +12,10 @@
 //!   and blocks in those rows only, so parts never write the same datum. The elements
 //!   across a boundary (the last group) are handled afterwards, by one thread.
 //!
-//! Ranges only make small boundaries when the numbering has locality, so a scene
-//! with more than one thread is renumbered by reverse Cuthill–McKee when loaded
+//! Ranges only make small boundaries when the numbering has locality, so a mesh
+//! split among threads is renumbered by reverse Cuthill–McKee when loaded
 //! (`simulation/mesh.rs`): each range is then a band of breadth-first levels across
-//! the liver. On liver-20k in two parts, 1.3% of the off-diagonal blocks and 2.3% of
+//! the liver. On liver-20k in two parts, 3.2% of the off-diagonal blocks and 6.1% of
 //! the elements cross (the file's own numbering: 28% of the blocks). Contiguous
 //! ranges also keep two threads' writes in different cache lines.
 //!

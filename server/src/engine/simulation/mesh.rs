@@ -23,8 +23,9 @@ use crate::engine::scene::{
 pub const RENUMBER_VERTICES: usize = 32_768;
 
 /// The scene's mesh in metres: `mesh.file` read, renumbered from
-/// [`RENUMBER_VERTICES`] vertices up or when split among threads, scaled by `mesh.scale`, and with `mesh.center`
-/// its bounding-box centre moved to the origin; its extent checked against the scene
+/// [`RENUMBER_VERTICES`] vertices up or when split among threads, scaled by
+/// `mesh.scale`, and with `mesh.center` its bounding-box centre moved to the
+/// origin; its extent checked against the scene
 /// limits.
 pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
     let mut mesh = read(scene)?;
