@@ -25,6 +25,7 @@
 //! scene, and re-simulation uses it.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 /// The fewest vertices a part holds: a mesh is split into at most
 /// `vertices / MIN_PART_VERTICES` parts ([`part_count`]). Below it, handing a part to
@@ -41,13 +42,17 @@ pub fn part_count(vertices: usize, threads: usize) -> usize {
 }
 
 /// The parts of a mesh's vertices and of its corotational elements.
+///
+/// A clone shares the element lists with the original: the integrator, its CG
+/// workspace and the corotational update each keep one, and on liver-300k the lists
+/// hold 1.2 MB.
 #[derive(Clone, Debug)]
 pub struct Parts {
     /// Part `t` is the vertices `bounds[t]..bounds[t + 1]`.
     bounds: Vec<usize>,
     /// The elements of part `t` (all four vertices in `t`), ascending, for
     /// `t < count`; group `count` holds the elements that cross a boundary.
-    elements: Vec<u32>,
+    elements: Arc<[u32]>,
     element_start: Vec<usize>,
 }
 
@@ -68,7 +73,7 @@ impl Parts {
         );
         Parts {
             bounds,
-            elements,
+            elements: elements.into(),
             element_start,
         }
     }
@@ -99,9 +104,9 @@ impl Parts {
         self.elements(self.count())
     }
 
-    /// Bytes held (for memory reports).
+    /// Bytes held (for memory reports), the shared element lists included.
     pub fn heap_bytes(&self) -> usize {
-        self.elements.capacity() * 4 + (self.bounds.capacity() + self.element_start.capacity()) * 8
+        self.elements.len() * 4 + (self.bounds.capacity() + self.element_start.capacity()) * 8
     }
 }
 

@@ -65,3 +65,21 @@ fn every_element_is_in_its_vertices_part_or_crossing() {
         }
     }
 }
+
+/// The integrator hands its parts to the CG workspace and the corotational update:
+/// a clone reads the same element lists, not a copy of them.
+#[test]
+fn a_clone_shares_the_element_lists() {
+    let mesh = liver_mesh();
+    let parts = Parts::new(mesh.vertex_count(), 2, mesh.tets.iter().copied());
+    let copy = parts.clone();
+    for t in 0..=parts.count() {
+        let (a, b) = if t < parts.count() {
+            (parts.elements(t), copy.elements(t))
+        } else {
+            (parts.crossing(), copy.crossing())
+        };
+        assert_eq!(a, b);
+        assert!(std::ptr::eq(a, b), "group {t} was copied");
+    }
+}
