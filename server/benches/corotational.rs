@@ -29,6 +29,10 @@
 //! mesh renumbered when loaded, the product and the update shared by parts), the
 //! update's column too; the default is one.
 //!
+//! `LAPARO_STIFFNESS=f64` (or `f32`) sets `[mechanics] stiffness` for every scene;
+//! the default, `auto`, reads liver-300k's in f32 and the others' in f64 (the
+//! column "stiffness" says which each run read).
+//!
 //! `-- liver-300k` (or any labels) runs those meshes instead of the default three;
 //! liver-300k's ticks take seconds, so it is not run unless asked.
 //!
@@ -54,7 +58,9 @@ use common::*;
 use gestures::front_point;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::{Formulation, Parts, TANGENT_TURN};
-use laparo_server::engine::integrate::{Integrator, IntegratorKind, PreconditionerKind};
+use laparo_server::engine::integrate::{
+    Integrator, IntegratorKind, PreconditionerKind, StiffnessStorage,
+};
 use laparo_server::engine::simulation::Simulation;
 use laparo_server::engine::workers::Workers;
 use nalgebra::{Unit, Vector3};
@@ -68,11 +74,12 @@ const GAP: f64 = 0.002;
 
 fn main() {
     println!(
-        "| mesh | tetrahedra | model | preconditioner | tangent | median tick (ms) | ticks/s | max tick (ms) | median elastic step (ms) | CG its/tick | corotational update (ms) | shares reassembled per tick | max displacement (mm) | instrument force (N) | relative error vs static | vs exact tangent: state, force |"
+        "| mesh | tetrahedra | model | preconditioner | stiffness | tangent | median tick (ms) | ticks/s | max tick (ms) | median elastic step (ms) | CG its/tick | corotational update (ms) | shares reassembled per tick | max displacement (mm) | instrument force (N) | relative error vs static | vs exact tangent: state, force |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let labels = requested_labels(&["sofa-liver", "liver-20k", "liver-80k"]);
     let threads = threads();
+    let stiffness = stiffness();
     for case in meshes(&labels) {
         let runs = [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg]
             .into_iter()
@@ -91,6 +98,7 @@ fn main() {
             scene.material.model = model;
             scene.mechanics.preconditioner = preconditioner;
             scene.mechanics.threads = threads;
+            scene.mechanics.stiffness = stiffness;
             let mut sim = build(&scene);
             if let Some(turn) = turn {
                 sim.integrator.set_tangent_turn(turn);
@@ -171,10 +179,15 @@ fn main() {
                 }
             };
             println!(
-                "| {} | {} | {:?} | {preconditioner:?} | {tangent} | {:.3} | {:.0} | {slowest:.3} | {:.3} | {:.0} | {} | {shares} | {:.2} | {:.3} | {:.1e} | {versus} |",
+                "| {} | {} | {:?} | {preconditioner:?} | {} | {tangent} | {:.3} | {:.0} | {slowest:.3} | {:.3} | {:.0} | {} | {shares} | {:.2} | {:.3} | {:.1e} | {versus} |",
                 case.label,
                 sim.mesh.tets.len(),
                 model,
+                if sim.integrator.reads_f32() {
+                    "f32"
+                } else {
+                    "f64"
+                },
                 tick,
                 1e3 / tick,
                 median(&mut elastic),
@@ -194,6 +207,17 @@ fn threads() -> usize {
         .ok()
         .and_then(|t| t.parse().ok())
         .unwrap_or(1)
+}
+
+/// `LAPARO_STIFFNESS` (the scene's `[mechanics] stiffness`: `auto`, `f64` or
+/// `f32`), `auto` unless set.
+fn stiffness() -> StiffnessStorage {
+    match std::env::var("LAPARO_STIFFNESS").as_deref() {
+        Ok("f64") => StiffnessStorage::F64,
+        Ok("f32") => StiffnessStorage::F32,
+        Ok("auto") | Err(_) => StiffnessStorage::Auto,
+        Ok(other) => panic!("LAPARO_STIFFNESS is auto, f64 or f32, not {other}"),
+    }
 }
 
 /// [`TANGENT_TURN`], or `LAPARO_TANGENT_TURN` (rad) to measure another.

@@ -25,7 +25,8 @@
 //! Achieved bytes per second: the bytes one tick streams, each array counted once per
 //! pass that reads or writes it, over the median tick (block Jacobi only: a V-cycle's
 //! traffic is not modelled, so the column is empty for multigrid). A product `K p` reads the
-//! stiffness blocks and indices, the masses and `p` and writes its result; a CG
+//! stiffness blocks (in f32 where the scene's `[mechanics] stiffness` reads them so:
+//! liver-300k under `auto`) and indices, the masses and `p` and writes its result; a CG
 //! iteration adds ten block vectors for its updates and dot products and the inverse
 //! diagonal blocks of block Jacobi; a corotational tick first reads every element and
 //! the positions and writes `K̂` twice (zeroed, then summed into) and the offset; an
@@ -217,9 +218,19 @@ fn tick_bytes(sim: &Simulation, substeps: u32, cg_iterations: u32) -> f64 {
         return f64::from(substeps) * (force + 4.0 * vector);
     }
     let precond = 72.0 * n + 2.0 * vector;
+    // The solve's products read the f32 copy of the blocks when the scene's
+    // `stiffness` says so (liver-300k under `auto`): half the blocks' bytes, and
+    // the corotational K̂ read once more and the copy written each tick.
+    let blocks = (sim.model.stiffness.block.len() * 72) as f64;
+    let (solve_product, rounding) = if sim.integrator.reads_f32() {
+        let rounding = if corotational { 1.5 * blocks } else { 0.0 };
+        (product - 0.5 * blocks, rounding)
+    } else {
+        (product, 0.0)
+    };
     // The update (corotational) or a product for the right-hand side, the first
     // residual, then per iteration a product, the updates and the preconditioner.
     let start = if corotational { update } else { product };
     let its = f64::from(cg_iterations);
-    start + product + precond + its * (product + 10.0 * vector + precond)
+    start + rounding + solve_product + precond + its * (solve_product + 10.0 * vector + precond)
 }

@@ -9,7 +9,7 @@ use std::cell::Cell;
 
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::elastic::Formulation;
-use laparo_server::engine::integrate::{IntegratorKind, PreconditionerKind};
+use laparo_server::engine::integrate::{IntegratorKind, PreconditionerKind, StiffnessStorage};
 use laparo_server::engine::scene::Scene;
 use nalgebra::{Point3, Unit, Vector3};
 
@@ -76,6 +76,10 @@ fn shared_ticks_allocate_nothing() {
             scene.mechanics.preconditioner = PreconditionerKind::BlockJacobi;
             scene.material.model = model;
             scene.mechanics.threads = 2;
+            ticks_allocate_nothing_on(scene.clone());
+            // The products reading an f32 copy of the stiffness, refreshed each
+            // corotational tick.
+            scene.mechanics.stiffness = StiffnessStorage::F32;
             ticks_allocate_nothing_on(scene);
         }
     }

@@ -217,7 +217,7 @@ impl BlockMatrix {
     /// `K_ij u_j` to row `i` and `K_ijᵀ u_i` to row `j`. Allocation-free.
     pub fn mul(&self, u: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
         debug_assert_eq!(u.len(), self.rows());
-        self.mul_rows(0..self.rows(), u, out);
+        self.mul_rows(&self.block, 0..self.rows(), u, out);
     }
 
     /// Rows `rows` of `K u` into `out` (which holds those rows), walked in order:
@@ -225,18 +225,27 @@ impl BlockMatrix {
     /// `j` when `j` is in `rows` (columns ascend, so those come first); the lower
     /// blocks `K_ji` (`j < i`) of a `j` before `rows` are read from row `i`'s side
     /// instead. Over all rows this is one pass over the stored blocks.
-    fn mul_rows(&self, rows: Range<usize>, u: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
+    ///
+    /// `blocks` are the stored blocks, [`block`](Self::block) or a copy of them in
+    /// another precision ([`Block`]), on this matrix's pattern.
+    fn mul_rows<B: Block>(
+        &self,
+        blocks: &[B],
+        rows: Range<usize>,
+        u: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
         let at = |i: usize| i - rows.start;
         out.iter_mut().for_each(|o| *o = Vector3::zeros());
         for i in rows.clone() {
             let (b, e) = (self.row_start[i] as usize, self.row_start[i + 1] as usize);
             let ui = u[i];
-            let mut acc = self.block[b] * ui;
-            for (k, &c) in self.block[b + 1..e].iter().zip(&self.col[b + 1..e]) {
+            let mut acc = blocks[b].times(&ui);
+            for (k, &c) in blocks[b + 1..e].iter().zip(&self.col[b + 1..e]) {
                 let c = c as usize;
-                acc += k * u[c];
+                acc += k.times(&u[c]);
                 if c < rows.end {
-                    out[at(c)] += k.tr_mul(&ui);
+                    out[at(c)] += k.tr_times(&ui);
                 }
             }
             let (b, e) = (
@@ -247,7 +256,7 @@ impl BlockMatrix {
                 if j as usize >= rows.start {
                     break;
                 }
-                acc += self.block[k as usize].tr_mul(&u[j as usize]);
+                acc += blocks[k as usize].tr_times(&u[j as usize]);
             }
             out[at(i)] += acc;
         }
@@ -269,6 +278,38 @@ impl BlockMatrix {
         u: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     ) {
+        self.mul_shared_with(&self.block, workers, parts, a, s, u, out);
+    }
+
+    /// [`mul_shared`](Self::mul_shared) with the blocks read from `blocks32`, a
+    /// copy of [`block`](Self::block) rounded to f32 ([`round_f32_shared`](Self::round_f32_shared)):
+    /// each block widened to f64 as it is read, the vectors and sums in f64.
+    #[allow(clippy::too_many_arguments)]
+    pub fn mul_shared_f32(
+        &self,
+        blocks32: &[Matrix3<f32>],
+        workers: Option<&Workers>,
+        parts: &Parts,
+        a: impl Fn(usize) -> f64 + Sync,
+        s: f64,
+        u: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
+        assert_eq!(blocks32.len(), self.block.len());
+        self.mul_shared_with(blocks32, workers, parts, a, s, u, out);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn mul_shared_with<B: Block + Sync>(
+        &self,
+        blocks: &[B],
+        workers: Option<&Workers>,
+        parts: &Parts,
+        a: impl Fn(usize) -> f64 + Sync,
+        s: f64,
+        u: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
         assert_eq!(u.len(), self.rows());
         assert_eq!(out.len(), self.rows());
         let cells = Disjoint::new(out);
@@ -276,9 +317,31 @@ impl BlockMatrix {
             let rows = parts.range(t);
             // SAFETY: the parts' ranges are disjoint, and `u` is not `out`.
             let out = unsafe { cells.range(rows.clone()) };
-            self.mul_rows(rows.clone(), u, out);
+            self.mul_rows(blocks, rows.clone(), u, out);
             for (o, i) in out.iter_mut().zip(rows.clone()) {
                 *o = a(i) * u[i] + s * *o;
+            }
+        });
+    }
+
+    /// Writes each stored block rounded to f32 into `out` (as long as
+    /// [`block`](Self::block)), the blocks of each part's rows by one of `workers`.
+    /// Allocation-free.
+    pub fn round_f32_shared(
+        &self,
+        workers: Option<&Workers>,
+        parts: &Parts,
+        out: &mut [Matrix3<f32>],
+    ) {
+        assert_eq!(out.len(), self.block.len());
+        let cells = Disjoint::new(out);
+        share(workers, parts.count(), &|t| {
+            let rows = parts.range(t);
+            let stored = self.row_start[rows.start] as usize..self.row_start[rows.end] as usize;
+            // SAFETY: a part's rows hold a range of the stored blocks of their own.
+            let out = unsafe { cells.range(stored.clone()) };
+            for (o, b) in out.iter_mut().zip(&self.block[stored]) {
+                *o = b.cast::<f32>();
             }
         });
     }
@@ -491,6 +554,39 @@ mod tests;
 #[cfg(test)]
 mod tests_corotational;
 #[cfg(test)]
+mod tests_f32;
+#[cfg(test)]
 mod tests_shared;
 #[cfg(test)]
 mod tests_tangent;
+
+/// A stored block of a [`BlockMatrix`] as its product reads it: `K u` and `Kᵀ u` in
+/// f64, whatever the block is stored in. An f32 block is widened exactly (every
+/// f32 is an f64), so the product's only extra error is the rounding of each entry
+/// to f32, a relative 2⁻²⁴ ≈ 6e-8 of it.
+pub trait Block: Copy {
+    fn times(&self, u: &Vector3<f64>) -> Vector3<f64>;
+    fn tr_times(&self, u: &Vector3<f64>) -> Vector3<f64>;
+}
+
+impl Block for Matrix3<f64> {
+    #[inline(always)]
+    fn times(&self, u: &Vector3<f64>) -> Vector3<f64> {
+        self * u
+    }
+    #[inline(always)]
+    fn tr_times(&self, u: &Vector3<f64>) -> Vector3<f64> {
+        self.tr_mul(u)
+    }
+}
+
+impl Block for Matrix3<f32> {
+    #[inline(always)]
+    fn times(&self, u: &Vector3<f64>) -> Vector3<f64> {
+        self.cast::<f64>() * u
+    }
+    #[inline(always)]
+    fn tr_times(&self, u: &Vector3<f64>) -> Vector3<f64> {
+        self.cast::<f64>().tr_mul(u)
+    }
+}

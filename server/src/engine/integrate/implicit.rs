@@ -20,6 +20,11 @@
 //! tried: it saves a few iterations in a smooth transient but amplifies solver noise
 //! near rest, where it cost liver-20k 1.8× the tick time; `v₀` is better overall.)
 //!
+//! The products read the blocks of `K` (or `K̂`) in the precision the scene's
+//! `[mechanics] stiffness` gives ([`StiffnessStorage`](super::StiffnessStorage));
+//! everything else, the preconditioner's diagonal blocks and the reactions
+//! included, reads them in f64.
+//!
 //! Stopping rule: `‖r_f‖ ≤ tol · (‖M v₀‖ + h‖M g‖ + h‖K u₀‖ + ‖h² K_fc v_c‖)` over free
 //! vertices — the residual is small against the momenta and impulses that form the
 //! right-hand side (the last term is the push of moving imposed vertices), which stays
@@ -108,15 +113,17 @@ pub(super) fn step(
         k.for_each_in_row(c, |j, k_cj| w[j] += h * h * k_cj.tr_mul(&vc));
     }
     let reference = momentum.sqrt() + h * (weight.sqrt() + elastic.sqrt()) + free_norm(&it.w, mask);
+    if corotational && !it.blocks32.is_empty() {
+        k.round_f32_shared(workers, parts, &mut it.blocks32);
+    }
+    let blocks32 = &it.blocks32;
     let apply = |p: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
-        k.mul_shared(
-            workers,
-            parts,
-            |i| mass_factor * model.mass[i],
-            h * h,
-            p,
-            out,
-        );
+        let a = |i| mass_factor * model.mass[i];
+        if blocks32.is_empty() {
+            k.mul_shared(workers, parts, a, h * h, p, out);
+        } else {
+            k.mul_shared_f32(blocks32, workers, parts, a, h * h, p, out);
+        }
     };
     let report = it.cg.solve_shared(
         workers,

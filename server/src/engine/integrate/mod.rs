@@ -22,12 +22,14 @@ mod imposed;
 mod interrupt;
 mod preconditioner;
 mod statics;
+mod storage;
 
 pub use cg::{CgReport, CgWorkspace, Stop};
 pub use energy::{kinetic_energy, mechanical_energy};
 pub use imposed::Imposed;
 pub use interrupt::Interrupt;
 pub use preconditioner::{AUTO_AMG_VERTICES, PreconditionerKind};
+pub use storage::{F32_FROM_BYTES, StiffnessStorage};
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -102,6 +104,9 @@ pub struct IntegratorConfig {
     /// corotational update with, the calling thread included (see [`Workers`]): the
     /// mesh is split into [`part_count`] parts, fewer than `threads` if small.
     pub threads: usize,
+    /// The precision the implicit solve reads the stiffness blocks in (see
+    /// [`StiffnessStorage`]).
+    pub storage: StiffnessStorage,
 }
 
 impl Default for IntegratorConfig {
@@ -114,6 +119,7 @@ impl Default for IntegratorConfig {
             preconditioner: PreconditionerKind::default(),
             explicit_safety: 0.9,
             threads: 1,
+            storage: StiffnessStorage::default(),
         }
     }
 }
@@ -182,6 +188,10 @@ pub struct Integrator {
     workers: Option<Workers>,
     /// The vertices and elements split among them (one part for one thread).
     parts: Parts,
+    /// The stiffness blocks rounded to f32, which the implicit solve's products
+    /// read when [`IntegratorConfig::storage`] says so (empty otherwise): the
+    /// linear `K`'s once, the corotational `K̂`'s each tick.
+    blocks32: Vec<nalgebra::Matrix3<f32>>,
 }
 
 impl Integrator {
@@ -201,6 +211,12 @@ impl Integrator {
         if let Some(c) = &mut corotated {
             c.set_parts(parts.clone());
         }
+        let blocks = model.stiffness.block.len();
+        let mut blocks32 = Vec::new();
+        if config.kind == IntegratorKind::Implicit && config.storage.uses_f32(blocks) {
+            // The linear K never changes: rounded once. K̂ is rounded each tick.
+            blocks32 = model.stiffness.block.iter().map(|b| b.cast()).collect();
+        }
         Integrator {
             config,
             explicit_h_max,
@@ -217,7 +233,14 @@ impl Integrator {
             tangent_turn: TANGENT_TURN,
             workers: crew(count),
             parts,
+            blocks32,
         }
+    }
+
+    /// Whether the implicit solve reads the stiffness in f32 (see
+    /// [`StiffnessStorage`]).
+    pub fn reads_f32(&self) -> bool {
+        !self.blocks32.is_empty()
     }
 
     /// Corotational: extracts the rotations at `x`, keeps the force there and brings
@@ -376,6 +399,7 @@ impl Integrator {
             + self.cg.heap_bytes()
             + self.corotated.as_ref().map_or(0, Corotated::heap_bytes)
             + self.parts.heap_bytes()
+            + self.blocks32.capacity() * std::mem::size_of::<nalgebra::Matrix3<f32>>()
     }
 }
 

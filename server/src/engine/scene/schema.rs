@@ -9,7 +9,7 @@ use super::files::{MAX_SCENE_BYTES, read_bounded};
 use super::limits::*;
 use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::elastic::Formulation;
-use crate::engine::integrate::{IntegratorKind, PreconditionerKind};
+use crate::engine::integrate::{IntegratorKind, PreconditionerKind, StiffnessStorage};
 use crate::engine::local_model::ForceModelKind;
 use crate::engine::workers::MAX_THREADS;
 
@@ -162,6 +162,13 @@ pub struct MechanicsSpec {
     /// the last bits.
     #[serde(default = "default_threads")]
     pub threads: usize,
+    /// The precision the implicit solve's products read the stiffness in:
+    /// `"auto"` (the default: f32 when the f64 blocks take
+    /// [`F32_FROM_BYTES`](crate::engine::integrate::F32_FROM_BYTES) or more, as on
+    /// liver-300k), `"f64"` or `"f32"` (a copy rounded to f32, each block widened
+    /// as it is read). See [`StiffnessStorage`].
+    #[serde(default)]
+    pub stiffness: StiffnessStorage,
 }
 
 impl Default for MechanicsSpec {
@@ -174,6 +181,7 @@ impl Default for MechanicsSpec {
             cg_max_iterations: default_cg_max_iterations(),
             preconditioner: PreconditionerKind::default(),
             threads: default_threads(),
+            stiffness: StiffnessStorage::default(),
         }
     }
 }

@@ -42,6 +42,7 @@ impl Scene {
             cg_max_iterations: m.cg_max_iterations,
             preconditioner: m.preconditioner,
             threads: m.threads,
+            storage: m.stiffness,
             ..IntegratorConfig::default()
         };
         let mut integrator = Integrator::new(config, &model);

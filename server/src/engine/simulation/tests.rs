@@ -108,5 +108,6 @@ fn regions_get_their_own_material() {
     assert_eq!(sim.model.materials[1].poisson_ratio, 0.3);
 }
 
+mod f32_stiffness;
 mod local_models;
 mod renumbered;

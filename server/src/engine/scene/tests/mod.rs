@@ -187,6 +187,28 @@ fn the_preconditioner_is_auto_unless_the_scene_names_one() {
 }
 
 #[test]
+fn the_stiffness_storage_is_auto_unless_the_scene_names_one() {
+    use crate::engine::integrate::StiffnessStorage;
+    assert_eq!(
+        parse(MINIMAL).unwrap().mechanics.stiffness,
+        StiffnessStorage::Auto
+    );
+    for (name, kind) in [
+        ("auto", StiffnessStorage::Auto),
+        ("f64", StiffnessStorage::F64),
+        ("f32", StiffnessStorage::F32),
+    ] {
+        let scene = parse(&format!("{MINIMAL}\n[mechanics]\nstiffness = \"{name}\"\n"));
+        assert_eq!(scene.unwrap().mechanics.stiffness, kind, "{name}");
+    }
+    let msg = expect_path(
+        parse(&format!("{MINIMAL}\n[mechanics]\nstiffness = \"f16\"\n")),
+        "mechanics.stiffness",
+    );
+    assert!(msg.contains("f32") && msg.contains("f64"), "{msg}");
+}
+
+#[test]
 fn the_contact_is_settled_unless_the_scene_says_not() {
     assert!(parse(MINIMAL).unwrap().contact.settle);
     assert!(crate::engine::scene::Scene::default_scene().contact.settle);
