@@ -27,7 +27,7 @@
 //!   `stiffness` at `f64` and at `f32`, each preconditioner: median tick of each,
 //!   the two run in turn twice in this process ([`ROUNDS`], each a fresh scene) so
 //!   that the machine's drift falls on both, and the instrument's reaction at the
-//!   end of each.
+//!   end of each. `LAPARO_THREADS=2` runs these scenes on two threads.
 //!
 //! The scene setting this measures is `[mechanics] stiffness`
 //! (`engine/integrate/storage.rs`, which gives the table).
@@ -178,6 +178,10 @@ fn main() {
         "| mesh | preconditioner | median tick f64 (ms) | median tick f32 (ms) | f32 / f64 | CG its/tick | reaction f64, f32 (N) |"
     );
     println!("|---|---|---|---|---|---|---|");
+    let threads = std::env::var("LAPARO_THREADS")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(1);
     for case in meshes(&labels) {
         for preconditioner in [PreconditionerKind::BlockJacobi, PreconditionerKind::Amg] {
             let mut ticks = [Vec::new(), Vec::new()];
@@ -190,6 +194,7 @@ fn main() {
                     let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
                     scene.mechanics.preconditioner = preconditioner;
                     scene.mechanics.stiffness = storage;
+                    scene.mechanics.threads = threads;
                     let (t, i, f) = press(&scene);
                     ticks[k].extend(t);
                     its.extend(i);

@@ -26,8 +26,12 @@
 //! the solutions lie 17–180 times closer to each other than to the exact one, and
 //! the press's reaction agrees to the fourth digit), and pays only beyond the
 //! cache: liver-300k's tick falls from 456 to 311 ms with block Jacobi and from 432
-//! to 391 ms with multigrid, whose coarse levels stay f64. `auto` takes it from
-//! [`F32_FROM_BYTES`].
+//! to 391 ms with multigrid, whose coarse levels stay f64. How much depends on the
+//! cache the tick gets on a shared machine: over this session's runs liver-300k's
+//! block-Jacobi tick took 283–456 ms in f64 and 294–311 ms in f32 (the
+//! corotational bench and this one), so f32 mostly takes the f64 tick's
+//! sensitivity to it away. On two threads (`LAPARO_THREADS=2`) the ratios are 0.96
+//! (162 → 155 ms) and 0.93. `auto` takes f32 from [`F32_FROM_BYTES`].
 //!
 //! The choice depends on the mesh only, never on the machine, so a re-simulation
 //! of a recording reproduces it.
