@@ -9,7 +9,7 @@
 //! thread) and the implicit operator of a 60 Hz tick, `A = (1 + hα) M + h² K`:
 //!
 //! - **the product** `K u` for a fixed pseudo-random `u`, by the engine's product on
-//!   one part (`BlockMatrix::mul_shared` and `mul_shared_f32`, one loop over
+//!   one part (`BlockMatrix::mul_shared` and `mul_shared_by`, one loop over
 //!   either block type): the f64 blocks as stored, and a copy of them rounded to
 //!   f32, each widened to f64 as it is read (vectors and sums stay f64). Median of
 //!   [`PRODUCTS`] products each, the two kinds alternating; the
@@ -102,7 +102,7 @@ fn main() {
             k.mul_shared(None, &one, |_| 0.0, 1.0, &u, &mut out64);
             t64.push(since(t) * 1e3);
             let t = Instant::now();
-            k.mul_shared_f32(&k32, None, &one, |_| 0.0, 1.0, &u, &mut out32);
+            k.mul_shared_by(&k32, None, &one, |_| 0.0, 1.0, &u, &mut out32);
             t32.push(since(t) * 1e3);
         }
         let product_error = relative(&out32, &out64);
@@ -130,7 +130,7 @@ fn main() {
             let apply = |p: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
                 let m = |i: usize| a * mass[i];
                 if f32 {
-                    k.mul_shared_f32(&k32, None, &one, m, h * h, p, out);
+                    k.mul_shared_by(&k32, None, &one, m, h * h, p, out);
                 } else {
                     k.mul_shared(None, &one, m, h * h, p, out);
                 }

@@ -278,29 +278,15 @@ impl BlockMatrix {
         u: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     ) {
-        self.mul_shared_with(&self.block, workers, parts, a, s, u, out);
+        self.mul_shared_by(&self.block, workers, parts, a, s, u, out);
     }
 
-    /// [`mul_shared`](Self::mul_shared) with the blocks read from `blocks32`, a
-    /// copy of [`block`](Self::block) rounded to f32 ([`round_f32_shared`](Self::round_f32_shared)):
-    /// each block widened to f64 as it is read, the vectors and sums in f64.
+    /// [`mul_shared`](Self::mul_shared) with the blocks read from `blocks`: the
+    /// stored ones, or a copy of them in another precision on this matrix's pattern,
+    /// such as [`round_f32_shared`](Self::round_f32_shared)'s (each block widened
+    /// to f64 as it is read, the vectors and sums in f64).
     #[allow(clippy::too_many_arguments)]
-    pub fn mul_shared_f32(
-        &self,
-        blocks32: &[Matrix3<f32>],
-        workers: Option<&Workers>,
-        parts: &Parts,
-        a: impl Fn(usize) -> f64 + Sync,
-        s: f64,
-        u: &[Vector3<f64>],
-        out: &mut [Vector3<f64>],
-    ) {
-        assert_eq!(blocks32.len(), self.block.len());
-        self.mul_shared_with(blocks32, workers, parts, a, s, u, out);
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn mul_shared_with<B: Block + Sync>(
+    pub fn mul_shared_by<B: Block + Sync>(
         &self,
         blocks: &[B],
         workers: Option<&Workers>,
@@ -310,6 +296,7 @@ impl BlockMatrix {
         u: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     ) {
+        assert_eq!(blocks.len(), self.block.len());
         assert_eq!(u.len(), self.rows());
         assert_eq!(out.len(), self.rows());
         let cells = Disjoint::new(out);

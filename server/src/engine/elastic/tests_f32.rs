@@ -5,9 +5,8 @@
 use nalgebra::Vector3;
 
 use super::tests_corotational::models;
+use super::tests_shared::{liver, product_case};
 use super::*;
-use crate::engine::mesh::reverse_cuthill_mckee;
-use crate::engine::testing::liver_mesh;
 use crate::engine::workers::Workers;
 
 /// The unit round-off of f32: a block entry rounded to f32 is within this much of
@@ -16,15 +15,11 @@ const F32_ROUNDING: f64 = 1.0 / (1u64 << 24) as f64;
 
 #[test]
 fn the_f32_product_is_the_product_of_the_rounded_blocks() {
-    let file = liver_mesh();
-    let mesh = file.renumbered(&reverse_cuthill_mckee(file.vertex_count(), &file.edges));
+    let mesh = liver();
     let (model, _) = models(&mesh, 0.45);
     let k = &model.stiffness;
     let n = mesh.vertex_count();
-    let u: Vec<Vector3<f64>> = (0..n)
-        .map(|i| Vector3::new((i as f64).sin(), (0.7 * i as f64).cos(), 1e-3 * i as f64))
-        .collect();
-    let (a, s) = (|i: usize| 0.5 + (i % 7) as f64, 0.25);
+    let (u, a, s) = product_case(n);
     // K with every block rounded to f32 and back, and |K| with |u|, which bounds
     // what the rounding can change in each row.
     let mut rounded = k.clone();
@@ -56,7 +51,7 @@ fn the_f32_product_is_the_product_of_the_rounded_blocks() {
                 assert_eq!(*c, b.cast::<f32>(), "{count} parts: every block rounded");
             }
             let mut got = vec![Vector3::repeat(f64::NAN); n];
-            k.mul_shared_f32(&copy, workers, &parts, a, s, &u, &mut got);
+            k.mul_shared_by(&copy, workers, &parts, a, s, &u, &mut got);
             let mut want = vec![Vector3::zeros(); n];
             rounded.mul_shared(workers, &parts, a, s, &u, &mut want);
             assert_eq!(

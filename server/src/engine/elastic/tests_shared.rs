@@ -11,7 +11,7 @@ use crate::engine::testing::liver_mesh;
 use crate::engine::workers::Workers;
 
 /// SOFA's liver renumbered for locality, as a scene on several threads loads it.
-fn liver() -> TetMesh {
+pub(super) fn liver() -> TetMesh {
     let file = liver_mesh();
     file.renumbered(&reverse_cuthill_mckee(file.vertex_count(), &file.edges))
 }
@@ -24,6 +24,17 @@ fn deformed(mesh: &TetMesh, turn: f64) -> Vec<Point3<f64>> {
         .iter()
         .map(|p| q * (p + 0.04 * Vector3::new((3.0 * p.y).sin(), (2.0 * p.z).cos(), p.x.sin())))
         .collect()
+}
+
+/// A vector of `n` entries of every size and sign, and the implicit step's mass
+/// term `a_i` and scale `s` for `a ∘ u + s K u`.
+pub(super) fn product_case(
+    n: usize,
+) -> (Vec<Vector3<f64>>, impl Fn(usize) -> f64 + Sync + Copy, f64) {
+    let u = (0..n)
+        .map(|i| Vector3::new((i as f64).sin(), (0.7 * i as f64).cos(), 1e-3 * i as f64))
+        .collect();
+    (u, |i: usize| 0.5 + (i % 7) as f64, 0.25)
 }
 
 fn max_gap(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
@@ -47,10 +58,7 @@ fn the_shared_product_is_the_sequential_one() {
     let (model, _) = models(&mesh, 0.45);
     let k = &model.stiffness;
     let n = mesh.vertex_count();
-    let u: Vec<Vector3<f64>> = (0..n)
-        .map(|i| Vector3::new((i as f64).sin(), (0.7 * i as f64).cos(), 1e-3 * i as f64))
-        .collect();
-    let (a, s) = (|i: usize| 0.5 + (i % 7) as f64, 0.25);
+    let (u, a, s) = product_case(n);
     // The sequential product and its mass term, as the implicit step formed them.
     let mut sequential = vec![Vector3::zeros(); n];
     k.mul(&u, &mut sequential);

@@ -122,7 +122,7 @@ pub(super) fn step(
         if blocks32.is_empty() {
             k.mul_shared(workers, parts, a, h * h, p, out);
         } else {
-            k.mul_shared_f32(blocks32, workers, parts, a, h * h, p, out);
+            k.mul_shared_by(blocks32, workers, parts, a, h * h, p, out);
         }
     };
     let report = it.cg.solve_shared(

@@ -160,52 +160,61 @@ fn a_scene_runs_on_one_thread_unless_it_says_more() {
     assert_eq!(two.mechanics.threads, 2);
 }
 
+/// A `[mechanics]` choice `key`: absent it is `default`, each of `names` parses to
+/// its value, and an unknown name is refused naming the key and the choices
+/// `listed`.
+fn mechanics_choice<T: PartialEq + std::fmt::Debug>(
+    key: &str,
+    get: impl Fn(&Scene) -> T,
+    default: T,
+    names: &[(&str, T)],
+    unknown: &str,
+    listed: &[&str],
+) {
+    assert_eq!(get(&parse(MINIMAL).unwrap()), default);
+    for (name, value) in names {
+        let scene = parse(&format!("{MINIMAL}\n[mechanics]\n{key} = \"{name}\"\n"));
+        assert_eq!(&get(&scene.unwrap()), value, "{key} = {name}");
+    }
+    let msg = expect_path(
+        parse(&format!("{MINIMAL}\n[mechanics]\n{key} = \"{unknown}\"\n")),
+        &format!("mechanics.{key}"),
+    );
+    assert!(listed.iter().all(|l| msg.contains(l)), "{msg}");
+}
+
 #[test]
 fn the_preconditioner_is_auto_unless_the_scene_names_one() {
     use crate::engine::integrate::PreconditionerKind;
-    assert_eq!(
-        parse(MINIMAL).unwrap().mechanics.preconditioner,
-        PreconditionerKind::Auto
+    mechanics_choice(
+        "preconditioner",
+        |s| s.mechanics.preconditioner,
+        PreconditionerKind::Auto,
+        &[
+            ("auto", PreconditionerKind::Auto),
+            ("block-jacobi", PreconditionerKind::BlockJacobi),
+            ("amg", PreconditionerKind::Amg),
+        ],
+        "ilu",
+        &["block-jacobi", "amg"],
     );
-    for (name, kind) in [
-        ("auto", PreconditionerKind::Auto),
-        ("block-jacobi", PreconditionerKind::BlockJacobi),
-        ("amg", PreconditionerKind::Amg),
-    ] {
-        let scene = parse(&format!(
-            "{MINIMAL}\n[mechanics]\npreconditioner = \"{name}\"\n"
-        ));
-        assert_eq!(scene.unwrap().mechanics.preconditioner, kind, "{name}");
-    }
-    let msg = expect_path(
-        parse(&format!(
-            "{MINIMAL}\n[mechanics]\npreconditioner = \"ilu\"\n"
-        )),
-        "mechanics.preconditioner",
-    );
-    assert!(msg.contains("block-jacobi") && msg.contains("amg"), "{msg}");
 }
 
 #[test]
 fn the_stiffness_storage_is_auto_unless_the_scene_names_one() {
     use crate::engine::integrate::StiffnessStorage;
-    assert_eq!(
-        parse(MINIMAL).unwrap().mechanics.stiffness,
-        StiffnessStorage::Auto
+    mechanics_choice(
+        "stiffness",
+        |s| s.mechanics.stiffness,
+        StiffnessStorage::Auto,
+        &[
+            ("auto", StiffnessStorage::Auto),
+            ("f64", StiffnessStorage::F64),
+            ("f32", StiffnessStorage::F32),
+        ],
+        "f16",
+        &["f32", "f64"],
     );
-    for (name, kind) in [
-        ("auto", StiffnessStorage::Auto),
-        ("f64", StiffnessStorage::F64),
-        ("f32", StiffnessStorage::F32),
-    ] {
-        let scene = parse(&format!("{MINIMAL}\n[mechanics]\nstiffness = \"{name}\"\n"));
-        assert_eq!(scene.unwrap().mechanics.stiffness, kind, "{name}");
-    }
-    let msg = expect_path(
-        parse(&format!("{MINIMAL}\n[mechanics]\nstiffness = \"f16\"\n")),
-        "mechanics.stiffness",
-    );
-    assert!(msg.contains("f32") && msg.contains("f64"), "{msg}");
 }
 
 #[test]
