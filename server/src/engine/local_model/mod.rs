@@ -74,13 +74,22 @@ use free::FreeSurface;
 use stiffness::{Calibration, VertexMaterial};
 
 /// The reaction-force model.
+///
+/// `Calibrated` is the default: it renders the contact's own reaction (the elastic
+/// force on the held tissue, scaled to the instrument's footprint unless the scene
+/// turns that off), which is what a press gives on every mesh alike. The paper's
+/// `Geometric` model stays as the scene's option: mesh-independent by construction
+/// but not the tissue's force. On the force-error bench's probe of the default
+/// liver at 60 Hz it is 98.7% RMS off the 1 kHz reaction, the calibrated model
+/// 16.8%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
+/// reaction is 0.20–0.29 N on every liver (`cargo bench --bench convergence`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ForceModelKind {
     /// The paper's: apparent stiffness proportional to the local Young's modulus.
-    #[default]
     Geometric,
     /// Stiffness and anchors fitted to the elastic model's reaction each tick.
+    #[default]
     Calibrated,
 }
 

@@ -248,3 +248,24 @@ fn the_tip_force_is_scaled_to_its_footprint_unless_the_scene_says_not() {
         "contact.footprint",
     );
 }
+
+#[test]
+fn the_force_rendered_is_the_reaction_unless_the_scene_asks_for_the_papers() {
+    use crate::engine::local_model::ForceModelKind;
+    assert_eq!(
+        parse(MINIMAL).unwrap().force_model.kind,
+        ForceModelKind::Calibrated
+    );
+    assert_eq!(
+        crate::engine::scene::Scene::default_scene()
+            .force_model
+            .kind,
+        ForceModelKind::Calibrated
+    );
+    let scene = parse(&format!("{MINIMAL}\n[force_model]\nkind = \"geometric\"\n"));
+    assert_eq!(scene.unwrap().force_model.kind, ForceModelKind::Geometric);
+    expect_path(
+        parse(&format!("{MINIMAL}\n[force_model]\nkind = \"flat\"\n")),
+        "force_model.kind",
+    );
+}
