@@ -258,6 +258,32 @@ fn the_hand_rests_on_calibrated_tissue_of_every_stiffness() {
     }
 }
 
+/// The hand rests on the default scene as it ships (calibrated force model, the
+/// footprint scale, 4.5 kPa tissue, 60 Hz), pulled 2, 5 and 8 mm past the surface,
+/// and feels the tissue: a force that grows with the target.
+#[test]
+fn the_hand_rests_on_the_default_liver() {
+    let mut felt = Vec::new();
+    for depth in [0.002, 0.005, 0.008] {
+        let mut sim = Scene::default_scene().build().unwrap();
+        for _ in 0..60 {
+            sim.tick();
+        }
+        let run = hand_on(sim, 10.0, depth);
+        assert_passive(&run, &format!("default scene, target {} mm", depth * 1e3));
+        felt.push(run.force[2999]);
+        println!(
+            "default scene, target {} mm: {:.3} N",
+            depth * 1e3,
+            run.force[2999]
+        );
+    }
+    assert!(
+        felt[0] > 0.0 && felt[0] < felt[1] && felt[1] < felt[2],
+        "{felt:?} N"
+    );
+}
+
 #[test]
 fn the_device_limit_clamps_cleanly() {
     // A 0.5 N device on 10 MPa tissue: the hand pushes harder than the device can
