@@ -140,9 +140,9 @@ fn a_steady_sideways_shaft_push_holds_a_steady_force() {
 fn a_deep_tip_press_renders_the_reaction_on_every_liver() {
     // The tip, axis +z, pressed 15 mm past the free front over 0.5 s and held: the
     // default scene's force model (calibrated) renders the tissue's reaction
-    // whatever the mesh. On a fine
-    // liver the tissue wraps around the tip, no triangle stays on its axis and the
-    // nearest surface lies beside it; its held vertices must still make a plane.
+    // whatever the mesh. On a fine liver the tissue wraps around the tip, no
+    // triangle stays on its axis and the nearest surface lies beside it; its held
+    // vertices must still make a plane.
     // liver-80k, where that happened, runs when the shared meshes are found.
     let mut meshes = vec![
         "builtin:liver.msh".to_string(),
