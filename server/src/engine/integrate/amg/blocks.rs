@@ -23,6 +23,9 @@ pub struct Blocks<const M: usize, const W: usize> {
     /// Column node of each block.
     col: Vec<u32>,
     value: Vec<SMatrix<f64, M, W>>,
+    /// The blocks rounded to f32, once [`round_to_f32`](Self::round_to_f32) has
+    /// replaced `value` by them.
+    value32: Vec<SMatrix<f32, M, W>>,
 }
 
 impl<const M: usize, const W: usize> Blocks<M, W> {
@@ -38,6 +41,7 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
             start: vec![0],
             col: Vec::new(),
             value: Vec::new(),
+            value32: Vec::new(),
         };
         let mut row_blocks: Vec<u32> = Vec::new();
         for i in 0..rows {
@@ -74,7 +78,19 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
 
     /// Stored values (with the zeros inside blocks).
     pub fn entries(&self) -> usize {
-        self.value.len() * M * W
+        (self.value.len() + self.value32.len()) * M * W
+    }
+
+    /// Replaces the f64 blocks by their rounding to f32: half the bytes a product
+    /// streams, each entry off by at most half an ulp of f32 (6e-8 of itself).
+    pub fn round_to_f32(&mut self) {
+        self.value32 = self.value.iter().map(|b| b.cast::<f32>()).collect();
+        self.value = Vec::new();
+    }
+
+    /// Whether the blocks are held in f32.
+    pub fn is_f32(&self) -> bool {
+        self.value.is_empty() && !self.value32.is_empty()
     }
 
     /// `out = A x`.
@@ -84,15 +100,30 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
         self.mul_add(x, out);
     }
 
-    /// `out += A x`.
+    /// `out += A x` (sums in f64, whatever the blocks are held in).
     #[inline]
     pub fn mul_add(&self, x: &[f64], out: &mut [f64]) {
+        if self.value32.is_empty() {
+            self.mul_add_by(&self.value, x, out, |b| *b);
+        } else {
+            self.mul_add_by(&self.value32, x, out, |b| b.cast::<f64>());
+        }
+    }
+
+    #[inline]
+    fn mul_add_by<B>(
+        &self,
+        value: &[B],
+        x: &[f64],
+        out: &mut [f64],
+        widen: impl Fn(&B) -> SMatrix<f64, M, W>,
+    ) {
         for i in 0..self.start.len() - 1 {
             let mut acc = SVector::<f64, M>::zeros();
             for b in self.start[i] as usize..self.start[i + 1] as usize {
                 let j = self.col[b] as usize;
                 let xj = SVector::<f64, W>::from_column_slice(&x[W * j..W * (j + 1)]);
-                acc += self.value[b] * xj;
+                acc += widen(&value[b]) * xj;
             }
             for (o, a) in out[M * i..M * (i + 1)].iter_mut().zip(acc.iter()) {
                 *o += a;
@@ -104,5 +135,6 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
     pub fn heap_bytes(&self) -> usize {
         (self.start.capacity() + self.col.capacity()) * 4
             + self.value.capacity() * std::mem::size_of::<SMatrix<f64, M, W>>()
+            + self.value32.capacity() * std::mem::size_of::<SMatrix<f32, M, W>>()
     }
 }

@@ -31,6 +31,11 @@
 //! correction is `Π P B_c Pᵀ Π` with `B_c` symmetric positive definite), so PCG stays
 //! valid; how much the rotations drift from rest only changes how fast it converges.
 //!
+//! **Precision.** The prolongators, restrictions and coarse operators are built in
+//! f64 and, where the scene's `[mechanics] stiffness` says so for their size, held
+//! in f32 from then on ([`Amg::round_to_f32`]; sums stay f64): half the bytes a
+//! cycle streams, the cycle still symmetric positive definite.
+//!
 //! Every vector a cycle touches is allocated by the setup: an application allocates
 //! nothing.
 
@@ -143,6 +148,45 @@ impl Amg {
             nonzeros,
             prolongator_nonzeros,
         }
+    }
+
+    /// Bytes of the sparse matrices a cycle streams (the prolongators, restrictions
+    /// and coarse operators above the coarsest), as they are held.
+    pub fn matrix_bytes(&self) -> usize {
+        let f = &self.fine;
+        f.p.heap_bytes()
+            + f.r.heap_bytes()
+            + self
+                .levels
+                .iter()
+                .map(|l| l.a.heap_bytes() + l.p.heap_bytes() + l.r.heap_bytes())
+                .sum::<usize>()
+    }
+
+    /// Holds the sparse matrices of [`matrix_bytes`](Self::matrix_bytes) in f32
+    /// from now on (see [`StiffnessStorage`](super::StiffnessStorage)): half the
+    /// bytes a cycle streams. The cycle stays a symmetric positive-definite
+    /// operator: each restriction is still exactly its prolongator's transpose (the
+    /// same entries, rounded alike), each coarse operator still symmetric, and its
+    /// smoother's `ω ρ(D⁻¹A) = 4/3` moves by the rounding, about 1e-7 of itself,
+    /// far from 2. The coarse operators' inverse diagonal blocks and the coarsest
+    /// factor, built from the f64 values, stay f64; they no longer invert the
+    /// rounded operators exactly, which only changes how fast CG converges, by the
+    /// same 1e-7.
+    pub fn round_to_f32(&mut self) {
+        let f = &mut self.fine;
+        f.p.round_to_f32();
+        f.r.round_to_f32();
+        for l in &mut self.levels {
+            l.a.round_to_f32();
+            l.p.round_to_f32();
+            l.r.round_to_f32();
+        }
+    }
+
+    /// Whether [`round_to_f32`](Self::round_to_f32) has been applied.
+    pub fn is_f32(&self) -> bool {
+        self.fine.p.is_f32()
     }
 
     /// Bytes held.
