@@ -30,8 +30,10 @@
 //! update's column too; the default is one.
 //!
 //! `LAPARO_STIFFNESS=f64` (or `f32`) sets `[mechanics] stiffness` for every scene;
-//! the default, `auto`, reads liver-300k's in f32 and the others' in f64 (the
-//! column "stiffness" says which each run read).
+//! the default, `auto`, reads liver-300k's blocks in f32 and the others' in f64,
+//! and holds the multigrid hierarchies of liver-80k and 300k in f32 (the column
+//! "stiffness" says which each run read: `f32 (blocks)` or `f32 (hierarchy)` when
+//! only one of them was).
 //!
 //! `-- liver-300k` (or any labels) runs those meshes instead of the default three;
 //! liver-300k's ticks take seconds, so it is not run unless asked.
@@ -183,10 +185,16 @@ fn main() {
                 case.label,
                 sim.mesh.tets.len(),
                 model,
-                if sim.integrator.reads_f32() {
-                    "f32"
-                } else {
-                    "f64"
+                match (
+                    sim.integrator.reads_f32(),
+                    sim.integrator
+                        .amg()
+                        .is_some_and(|h| h.is_f32() && sim.integrator.used_amg()),
+                ) {
+                    (true, true) => "f32",
+                    (true, false) => "f32 (blocks)",
+                    (false, true) => "f32 (hierarchy)",
+                    (false, false) => "f64",
                 },
                 tick,
                 1e3 / tick,

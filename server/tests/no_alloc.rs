@@ -80,6 +80,10 @@ fn shared_ticks_allocate_nothing() {
             // The products reading an f32 copy of the stiffness, refreshed each
             // corotational tick.
             scene.mechanics.stiffness = StiffnessStorage::F32;
+            ticks_allocate_nothing_on(scene.clone());
+            // And the multigrid hierarchy held in f32, on one thread.
+            scene.mechanics.threads = 1;
+            scene.mechanics.preconditioner = PreconditionerKind::Amg;
             ticks_allocate_nothing_on(scene);
         }
     }

@@ -117,7 +117,14 @@ impl Integrator {
             imposed,
             &model.rest,
         ) {
-            Ok(amg) => {
+            Ok(mut amg) => {
+                // In the precision of the implicit solve's other matrices (see
+                // `StiffnessStorage`), decided on the hierarchy's own size.
+                if self.config.kind == IntegratorKind::Implicit
+                    && self.config.storage.rounds(amg.matrix_bytes())
+                {
+                    amg.round_to_f32();
+                }
                 self.cg.amg = Some(amg);
                 self.cg.use_amg = true;
             }

@@ -162,11 +162,13 @@ pub struct MechanicsSpec {
     /// the last bits.
     #[serde(default = "default_threads")]
     pub threads: usize,
-    /// The precision the implicit solve's products read the stiffness in:
-    /// `"auto"` (the default: f32 when the f64 blocks take
-    /// [`F32_FROM_BYTES`](crate::engine::integrate::F32_FROM_BYTES) or more, as on
-    /// liver-300k), `"f64"` or `"f32"` (a copy rounded to f32, each block widened
-    /// as it is read). See [`StiffnessStorage`].
+    /// The precision the implicit solve's products read the stiffness in, and the
+    /// multigrid hierarchy's sparse matrices: `"auto"` (the default: f32 for each
+    /// when its f64 bytes reach
+    /// [`F32_FROM_BYTES`](crate::engine::integrate::F32_FROM_BYTES), the blocks
+    /// of liver-300k and the hierarchies of liver-80k and 300k), `"f64"` or `"f32"`
+    /// (copies rounded to f32, each entry widened as it is read). See
+    /// [`StiffnessStorage`].
     #[serde(default)]
     pub stiffness: StiffnessStorage,
 }

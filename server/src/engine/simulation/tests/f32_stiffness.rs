@@ -20,23 +20,31 @@ const APART: f64 = 1e-7;
 #[test]
 fn an_f32_stiffness_moves_the_liver_as_the_f64_one() {
     let liver_5k = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh");
-    for (model, threads) in [
-        (Formulation::Linear, 1),
-        (Formulation::Corotational, 1),
-        (Formulation::Corotational, 2),
+    let (jacobi, multigrid) = (PreconditionerKind::BlockJacobi, PreconditionerKind::Amg);
+    for (model, threads, preconditioner) in [
+        (Formulation::Linear, 1, jacobi),
+        (Formulation::Corotational, 1, jacobi),
+        (Formulation::Corotational, 2, jacobi),
+        (Formulation::Corotational, 1, multigrid),
     ] {
         let mut scene = Scene::default_scene();
         scene.mesh.file = liver_5k.into();
         scene.material.model = model;
         scene.mechanics.threads = threads;
-        scene.mechanics.preconditioner = PreconditionerKind::BlockJacobi;
+        scene.mechanics.preconditioner = preconditioner;
         scene.mechanics.cg_tolerance = 1e-10;
-        // `auto` keeps f64 on liver-5k (0.65 MB of blocks).
+        // `auto` keeps f64 on liver-5k (0.65 MB of blocks, a 2.4 MB hierarchy).
         let mut a = scene.build().unwrap();
         assert!(!a.integrator.reads_f32());
+        assert!(a.integrator.amg().is_none_or(|h| !h.is_f32()));
         scene.mechanics.stiffness = StiffnessStorage::F32;
         let mut b = scene.build().unwrap();
         assert!(b.integrator.reads_f32());
+        // The multigrid hierarchy follows the setting.
+        assert_eq!(
+            b.integrator.amg().map(|h| h.is_f32()),
+            (preconditioner == multigrid).then_some(true)
+        );
         let n = a.mesh.vertex_count();
         let mut front: Vec<u32> = (0..n as u32).filter(|v| !a.fixed.contains(v)).collect();
         front.sort_by(|&p, &q| {
