@@ -119,6 +119,10 @@ fn a_hierarchy_in_f32_is_the_f64_one_to_its_rounding_in_half_the_bytes() {
     let mut exact: Amg = sim.integrator.amg().expect("a hierarchy was built").clone();
     let mut rounded = exact.clone();
     rounded.round_to_f32();
+    // Rounding again keeps what the first rounding left.
+    let mut twice = rounded.clone();
+    twice.round_to_f32();
+    assert_eq!(twice.matrix_bytes(), rounded.matrix_bytes());
     // The values halve (8 → 4 bytes an entry); the block indices stay.
     let (b64, b32) = (exact.matrix_bytes(), rounded.matrix_bytes());
     assert!(
@@ -132,7 +136,13 @@ fn a_hierarchy_in_f32_is_the_f64_one_to_its_rounding_in_half_the_bytes() {
     for seed in 0..5 {
         let r = random(n, seed + 100, mask);
         exact.apply(&op, &dinv, mask, &r, &mut z64);
+        twice.apply(&op, &dinv, mask, &r, &mut z32);
+        let again = z32.clone();
         rounded.apply(&op, &dinv, mask, &r, &mut z32);
+        assert_eq!(
+            again, z32,
+            "rounded twice, the cycle is the once-rounded one"
+        );
         let apart: Vec<Vector3<f64>> = z64.iter().zip(&z32).map(|(a, b)| a - b).collect();
         // Each stored entry moves by at most 2⁻²⁴ ≈ 6e-8 of itself, and the cycle
         // is a few products and a coarse solve of them: on liver-5k the two cycles
