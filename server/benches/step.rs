@@ -23,12 +23,13 @@
 //! `-- liver-300k` (or any labels) runs those meshes instead of all five.
 //!
 //! Achieved bytes per second: the bytes one tick streams, each array counted once per
-//! pass that reads or writes it, over the median tick (block Jacobi only: a V-cycle's
-//! traffic is not modelled, so the column is empty for multigrid). A product `K p` reads the
+//! pass that reads or writes it, over the median tick. A product `K p` reads the
 //! stiffness blocks (in f32 where the scene's `[mechanics] stiffness` reads them so:
 //! liver-300k under `auto`) and indices, the masses and `p` and writes its result; a CG
 //! iteration adds ten block vectors for its updates and dot products and the inverse
-//! diagonal blocks of block Jacobi; a corotational tick first reads every element and
+//! diagonal blocks of block Jacobi, or a V-cycle: two products of the tick's operator
+//! and what `Amg::cycle_bytes` counts (the prolongators, restrictions and coarse
+//! operators as held, their vectors, the coarsest factor read twice); a corotational tick first reads every element and
 //! the positions and writes `K̂` twice (zeroed, then summed into) and the offset; an
 //! explicit substep is a force evaluation (the product, or the element pass when
 //! corotational) and four vector passes for positions and velocities. Cache reuse is
@@ -140,11 +141,7 @@ fn main() {
                 _ if sim.integrator.used_amg() => "amg",
                 _ => "block-jacobi",
             };
-            let gbs = if sim.integrator.used_amg() {
-                "—".to_string()
-            } else {
-                format!("{:.2}", median(&mut bytes) / 1e9)
-            };
+            let gbs = format!("{:.2}", median(&mut bytes) / 1e9);
             println!(
                 "| {} | {} | {} | {:?} | {:?} | {precond} | {:.3} | {:.0} | {:.0} | {:.0} | {first_cg:.0} | {gbs} | {} | {:.1} | {setup} | {levels} | {} | {carry:.4} / {elastic:.3} / {resolve:.4} / {local:.4} |",
                 case.label,
@@ -217,7 +214,7 @@ fn tick_bytes(sim: &Simulation, substeps: u32, cg_iterations: u32) -> f64 {
         };
         return f64::from(substeps) * (force + 4.0 * vector);
     }
-    let precond = 72.0 * n + 2.0 * vector;
+    let multigrid = sim.integrator.amg().filter(|_| sim.integrator.used_amg());
     // The solve's products read the f32 copy of the blocks when the scene's
     // `stiffness` says so (liver-300k under `auto`): half the blocks' bytes, and
     // the corotational K̂ read once more and the copy written each tick.
@@ -232,5 +229,20 @@ fn tick_bytes(sim: &Simulation, substeps: u32, cg_iterations: u32) -> f64 {
     // residual, then per iteration a product, the updates and the preconditioner.
     let start = if corotational { update } else { product };
     let its = f64::from(cg_iterations);
-    start + rounding + solve_product + precond + its * (solve_product + 10.0 * vector + precond)
+    // One application of the preconditioner: block Jacobi's z = D⁻¹ r, once at the
+    // start and once an iteration; or a V-cycle, its own traffic and its products
+    // of the operator (`Amg::cycle_bytes`), once at the start and once an iteration
+    // but the last (a converged solve skips it).
+    let (precond, applications) = match multigrid {
+        None => (72.0 * n + 2.0 * vector, its + 1.0),
+        Some(amg) => (
+            amg.cycle_bytes() as f64 + amg.operator_products() as f64 * solve_product,
+            its.max(1.0),
+        ),
+    };
+    start
+        + rounding
+        + solve_product
+        + its * (solve_product + 10.0 * vector)
+        + applications * precond
 }

@@ -184,6 +184,65 @@ impl Amg {
         }
     }
 
+    /// Products of the caller's fine operator one application makes: one per
+    /// smoothing sweep, before and after, and the residual before restriction.
+    pub fn operator_products(&self) -> usize {
+        2 * SWEEPS
+    }
+
+    /// Bytes one application streams besides its
+    /// [`operator_products`](Self::operator_products): each matrix once per pass
+    /// that reads it (as held: f64 or f32), each vector once per pass that reads or
+    /// writes it, the fine level's inverse diagonal blocks and imposed flags
+    /// included, as [`apply`](Self::apply) and the cycle below it make them. A
+    /// model of what the cycle moves, for the bench `step`'s achieved bytes per
+    /// second; cache reuse is not credited.
+    pub fn cycle_bytes(&self) -> usize {
+        let f = &self.fine;
+        let n = f.t.len();
+        let (vector, dinv, flags) = (24 * n, 72 * n, n);
+        // A sweep after the operator's product: z += ω D⁻¹ (r − t), reading r, t,
+        // D⁻¹, z and the flags, writing z.
+        let sweep = 4 * vector + dinv + flags;
+        let fine = (vector + dinv + flags + vector)
+            + (SWEEPS - 1) * sweep
+            + (2 * vector + flags + vector)
+            + (f.r.heap_bytes() + vector)
+            + (f.p.heap_bytes() + vector)
+            + (3 * vector + flags)
+            + SWEEPS * sweep;
+        let levels: usize = self
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(k, l)| {
+                let m = 8 * l.x.len();
+                let coarser = 8 * match self.levels.get(k + 1) {
+                    Some(c) => c.x.len(),
+                    None => self.coarsest.x.len(),
+                };
+                let (a, d) = (l.a.heap_bytes(), l.dinv.heap_bytes());
+                // x = A x, t = b − t, x += ω D⁻¹ t.
+                let sweep = (a + 2 * m) + 3 * m + (d + 3 * m);
+                (m + d + 3 * m)
+                    + (SWEEPS - 1) * sweep
+                    + (a + 2 * m + 3 * m)
+                    + (l.r.heap_bytes() + m + coarser)
+                    + (l.p.heap_bytes() + coarser + 2 * m)
+                    + SWEEPS * sweep
+            })
+            .sum();
+        // The restriction into the first coarse level writes its right-hand side,
+        // the prolongation reads its solution.
+        let first = 8 * self
+            .levels
+            .first()
+            .map_or(self.coarsest.x.len(), |l| l.x.len());
+        // Forward and backward substitution read the packed factor and the vector.
+        let coarsest = 2 * (self.coarsest.factor.heap_bytes() + 8 * self.coarsest.x.len());
+        fine + 2 * first + levels + coarsest
+    }
+
     /// Whether [`round_to_f32`](Self::round_to_f32) has been applied.
     pub fn is_f32(&self) -> bool {
         self.fine.p.is_f32()
