@@ -22,10 +22,22 @@ pub struct Blocks<const M: usize, const W: usize> {
     start: Vec<u32>,
     /// Column node of each block.
     col: Vec<u32>,
-    value: Vec<SMatrix<f64, M, W>>,
-    /// The blocks rounded to f32, once [`round_to_f32`](Self::round_to_f32) has
-    /// replaced `value` by them.
-    value32: Vec<SMatrix<f32, M, W>>,
+    value: Values<M, W>,
+}
+
+/// The blocks' values, in the precision they are held in.
+#[derive(Clone, Debug)]
+enum Values<const M: usize, const W: usize> {
+    /// As built.
+    F64(Vec<SMatrix<f64, M, W>>),
+    /// Rounded by [`Blocks::round_to_f32`].
+    F32(Vec<SMatrix<f32, M, W>>),
+}
+
+impl<const M: usize, const W: usize> Default for Values<M, W> {
+    fn default() -> Self {
+        Values::F64(Vec::new())
+    }
 }
 
 impl<const M: usize, const W: usize> Blocks<M, W> {
@@ -37,12 +49,9 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
         );
         let (rows, cols) = (a.rows / M, a.cols / W);
         let mut slot = vec![u32::MAX; cols];
-        let mut out = Blocks {
-            start: vec![0],
-            col: Vec::new(),
-            value: Vec::new(),
-            value32: Vec::new(),
-        };
+        let mut start = vec![0];
+        let mut col = Vec::new();
+        let mut value: Vec<SMatrix<f64, M, W>> = Vec::new();
         let mut row_blocks: Vec<u32> = Vec::new();
         for i in 0..rows {
             row_blocks.clear();
@@ -57,44 +66,46 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
             }
             row_blocks.sort_unstable();
             for &j in &row_blocks {
-                slot[j as usize] = out.value.len() as u32;
-                out.col.push(j);
-                out.value.push(SMatrix::zeros());
+                slot[j as usize] = value.len() as u32;
+                col.push(j);
+                value.push(SMatrix::zeros());
             }
             for r in M * i..M * (i + 1) {
                 let (cs, vs) = a.row(r);
                 for (&c, &v) in cs.iter().zip(vs) {
                     let c = c as usize;
-                    out.value[slot[c / W] as usize][(r - M * i, c % W)] = v;
+                    value[slot[c / W] as usize][(r - M * i, c % W)] = v;
                 }
             }
             for &j in &row_blocks {
                 slot[j as usize] = u32::MAX;
             }
-            out.start.push(out.col.len() as u32);
+            start.push(col.len() as u32);
         }
-        out
+        Blocks {
+            start,
+            col,
+            value: Values::F64(value),
+        }
     }
 
     /// Stored values (with the zeros inside blocks).
     pub fn entries(&self) -> usize {
-        (self.value.len() + self.value32.len()) * M * W
+        self.col.len() * M * W
     }
 
     /// Replaces the f64 blocks by their rounding to f32: half the bytes a product
     /// streams, each entry off by at most half an ulp of f32 (6e-8 of itself).
     /// Blocks already in f32 stay as they are.
     pub fn round_to_f32(&mut self) {
-        if self.value.is_empty() {
-            return;
+        if let Values::F64(value) = &self.value {
+            self.value = Values::F32(value.iter().map(|b| b.cast::<f32>()).collect());
         }
-        self.value32 = self.value.iter().map(|b| b.cast::<f32>()).collect();
-        self.value = Vec::new();
     }
 
     /// Whether the blocks are held in f32.
     pub fn is_f32(&self) -> bool {
-        self.value.is_empty() && !self.value32.is_empty()
+        matches!(self.value, Values::F32(_))
     }
 
     /// `out = A x`.
@@ -107,10 +118,9 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
     /// `out += A x` (sums in f64, whatever the blocks are held in).
     #[inline]
     pub fn mul_add(&self, x: &[f64], out: &mut [f64]) {
-        if self.value32.is_empty() {
-            self.mul_add_by(&self.value, x, out, |b| *b);
-        } else {
-            self.mul_add_by(&self.value32, x, out, |b| b.cast::<f64>());
+        match &self.value {
+            Values::F64(value) => self.mul_add_by(value, x, out, |b| *b),
+            Values::F32(value) => self.mul_add_by(value, x, out, |b| b.cast::<f64>()),
         }
     }
 
@@ -138,7 +148,9 @@ impl<const M: usize, const W: usize> Blocks<M, W> {
     /// Bytes held.
     pub fn heap_bytes(&self) -> usize {
         (self.start.capacity() + self.col.capacity()) * 4
-            + self.value.capacity() * std::mem::size_of::<SMatrix<f64, M, W>>()
-            + self.value32.capacity() * std::mem::size_of::<SMatrix<f32, M, W>>()
+            + match &self.value {
+                Values::F64(v) => v.capacity() * std::mem::size_of::<SMatrix<f64, M, W>>(),
+                Values::F32(v) => v.capacity() * std::mem::size_of::<SMatrix<f32, M, W>>(),
+            }
     }
 }
