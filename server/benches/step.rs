@@ -27,9 +27,10 @@
 //! stiffness blocks (in f32 where the scene's `[mechanics] stiffness` reads them so:
 //! liver-300k under `auto`) and indices, the masses and `p` and writes its result; a CG
 //! iteration adds ten block vectors for its updates and dot products and the inverse
-//! diagonal blocks of block Jacobi, or a V-cycle: two products of the tick's operator
-//! and what `Amg::cycle_bytes` counts (the prolongators, restrictions and coarse
-//! operators as held, their vectors, the coarsest factor read twice); a corotational tick first reads every element and
+//! diagonal blocks of block Jacobi, or a V-cycle: two products of the tick's
+//! operator and what `Amg::cycle_bytes` counts (the prolongators, restrictions and
+//! coarse operators as held, their vectors, the coarsest factor read twice); a
+//! corotational tick first reads every element and
 //! the positions and writes `K̂` twice (zeroed, then summed into) and the offset; an
 //! explicit substep is a force evaluation (the product, or the element pass when
 //! corotational) and four vector passes for positions and velocities. Cache reuse is
