@@ -8,17 +8,20 @@
 //!   and a hand on a spring-damper.
 //! - [`force_loop`]: [`ForceLoop::tick`], one synchronous tick, and
 //!   [`ForceLoop::spawn`], the loop on its own thread against absolute deadlines.
+//! - [`passivity`]: the energy the models give the hand, kept within what it put in.
 //! - [`stats`]: rate, jitter, force steps, model age, clamps, missed deadlines.
 //!
 //! One tick: read the device pose and publish it; take the newest model if one
 //! arrived; evaluate the blended models at the pose ([`crate::proto::force`] does the
-//! force of one model); clamp to the device's limit keeping the direction; split into
+//! force of one model); damp what the models would give beyond what the hand put in;
+//! clamp to the device's limit keeping the direction; split into
 //! axial force and torque about the trocar; render. Nothing in a tick allocates, locks
 //! or blocks.
 
 pub mod blend;
 pub mod device;
 pub mod force_loop;
+pub mod passivity;
 pub mod slot;
 pub mod stats;
 

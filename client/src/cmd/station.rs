@@ -153,7 +153,7 @@ pub(crate) fn print_summary(s: &StationSummary) {
         let l = &i.loop_stats;
         say!(
             "  {}: models {} applied, {} invalid; max |F| {:.3} N; force loop {} ticks at {:.1} Hz, \
-             jitter p50 {:.1} µs p99 {:.1} µs max {:.1} µs, {} missed deadlines, {} clamped, max model age {:.1} ms",
+             jitter p50 {:.1} µs p99 {:.1} µs max {:.1} µs, {} missed deadlines, {} clamped, {} damped, max model age {:.1} ms",
             i.name,
             i.models_applied,
             i.models_invalid,
@@ -165,6 +165,7 @@ pub(crate) fn print_summary(s: &StationSummary) {
             l.jitter.max * 1e6,
             l.missed_deadlines,
             l.clamped_ticks,
+            l.damped_ticks,
             l.max_model_age_s * 1e3,
         );
     }

@@ -17,6 +17,7 @@ use triple_buffer::{Output, triple_buffer};
 
 use super::blend::Blender;
 use super::device::{DevicePose, HapticDevice};
+use super::passivity::Passivity;
 use super::slot::{ModelInbox, ModelSlot, PoseOutbox, PoseSlot, slot};
 use super::stats::{Limit, LoopStats, StatsRecorder};
 use crate::proto::force::{DeviceForce, split};
@@ -122,6 +123,7 @@ pub struct ForceLoop<D: HapticDevice> {
     models: ModelSlot,
     poses: PoseSlot,
     blender: Blender,
+    passivity: Passivity,
     stats: StatsRecorder,
     rendered: DeviceForce,
 }
@@ -137,12 +139,14 @@ impl<D: HapticDevice> ForceLoop<D> {
         config.validate()?;
         let (inbox, models) = slot();
         let (poses, outbox) = slot();
+        let max_stiffness = device.max_stiffness();
         let force_loop = ForceLoop {
             config,
             device,
             models,
             poses,
             blender: Blender::new(config.transition_s),
+            passivity: Passivity::new(max_stiffness),
             stats: StatsRecorder::new(config.period_s()),
             rendered: DeviceForce {
                 force: Vector3::zeros(),
@@ -154,12 +158,14 @@ impl<D: HapticDevice> ForceLoop<D> {
     }
 
     /// One haptic tick at haptic time `t` (s): read the device pose and publish it,
-    /// take the newest model if one arrived, blend, clamp to the device's limit,
-    /// split into the device's force and torque about the trocar, render, record.
-    /// No allocation, no lock, no blocking.
+    /// take the newest model if one arrived, blend, damp what the models gave the
+    /// hand beyond what it put in ([`super::passivity`]), clamp to the device's
+    /// limit, split into the device's force and torque about the trocar, render,
+    /// record. No allocation, no lock, no blocking.
     pub fn tick(&mut self, t: f64) {
         let (tip, axis) = self.device.pose(t);
         self.poses.write(DevicePose { time: t, tip, axis });
+        self.passivity.observe(t, &tip, &axis);
         if let Some(mut model) = self.models.take_new() {
             let limit = self.device.max_stiffness();
             for plane in model
@@ -173,9 +179,12 @@ impl<D: HapticDevice> ForceLoop<D> {
             self.stats.record_model();
         }
         let applied = self.blender.force(t, &tip, &axis);
-        let (force, limit) = clamp_force(&applied.force, self.device.max_force());
+        let passive = self.passivity.control(&applied.force);
+        let (force, limit) = clamp_force(&passive, self.device.max_force());
         let rendered = split(&force, &applied.point, &axis, &self.config.trocar);
         self.device.render(t, &rendered);
+        self.passivity
+            .rendered(t, force, applied.point, (applied.point - tip).dot(&axis));
         self.rendered = rendered;
         let model = self
             .blender
@@ -197,7 +206,15 @@ impl<D: HapticDevice> ForceLoop<D> {
 
     /// The figures so far.
     pub fn stats(&self) -> LoopStats {
-        self.stats.snapshot()
+        LoopStats {
+            damped_ticks: self.passivity.damped_ticks(),
+            ..self.stats.snapshot()
+        }
+    }
+
+    /// The passivity observer and controller.
+    pub fn passivity(&self) -> &Passivity {
+        &self.passivity
     }
 
     /// The blender, with the models in use.
@@ -217,7 +234,7 @@ impl<D: HapticDevice> ForceLoop<D> {
 
     /// The device back, with the final figures.
     pub fn into_parts(self) -> (D, LoopStats) {
-        let stats = self.stats.snapshot();
+        let stats = self.stats();
         (self.device, stats)
     }
 }
@@ -249,7 +266,7 @@ impl<D: HapticDevice + 'static> ForceLoop<D> {
                     force_loop.tick(start.elapsed().as_secs_f64());
                     ticks += 1;
                     if ticks.is_multiple_of(STATS_EVERY_TICKS) {
-                        stats_in.write(force_loop.stats.snapshot());
+                        stats_in.write(force_loop.stats());
                     }
                     k += 1;
                     let mut deadline = start + period.mul_f64(k as f64);

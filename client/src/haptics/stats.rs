@@ -42,6 +42,9 @@ pub struct LoopStats {
     pub clamped_ticks: u64,
     /// Ticks whose force was not finite and was rendered as zero.
     pub non_finite_ticks: u64,
+    /// Ticks on which the passivity controller damped the models' force
+    /// ([`super::passivity`]).
+    pub damped_ticks: u64,
     /// Deadlines skipped by the loop thread to resynchronise after running late by
     /// more than a period.
     pub missed_deadlines: u64,
