@@ -9,8 +9,9 @@
 //! model switch would make without blending, and the server's CPU time per simulated
 //! second. Beside them, how far the engine's own reaction at each rate (as its last
 //! tick left it) lies from the reference: the part of the error that comes from the
-//! mechanics rate, not from the local model. Then the loop on its own thread:
-//! achieved rate and period jitter.
+//! mechanics rate, not from the local model. Then the engine alone at 500, 2000 and
+//! 4000 Hz against the reference: how far the reference itself has converged in the
+//! tick. Then the loop on its own thread: achieved rate and period jitter.
 //!
 //! `cargo bench -p laparo-tests --bench force_error` (`-- --mesh FILE` runs the probe
 //! on another liver with the default scene's settings, e.g.
@@ -78,15 +79,56 @@ fn haptic_ticks() -> usize {
 
 /// The reaction at each haptic tick from a run of the engine at haptic rate.
 fn reference(probe: &Probe) -> Vec<Vector3<f64>> {
-    let mut sim = settled(HAPTIC_HZ, ForceModelKind::Geometric);
+    engine_alone(probe, HAPTIC_HZ)
+}
+
+/// The engine alone at `rate_hz`, driven along the probe: at each haptic tick, the
+/// reaction its last tick left (the pose of tick `k` is the probe's at `k / rate`).
+fn engine_alone(probe: &Probe, rate_hz: f64) -> Vec<Vector3<f64>> {
+    let mut sim = settled(rate_hz, ForceModelKind::Geometric);
+    let mut reaction = Vector3::zeros();
+    let mut k = 0u64;
     (0..haptic_ticks())
         .map(|j| {
-            let (tip, axis) = probe.pose(j as f64 / HAPTIC_HZ);
-            sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
-            sim.tick();
-            sim.instruments[0].report.reaction
+            let t = j as f64 / HAPTIC_HZ;
+            while k as f64 / rate_hz <= t + 1e-9 {
+                let (tip, axis) = probe.pose(k as f64 / rate_hz);
+                sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
+                sim.tick();
+                reaction = sim.instruments[0].report.reaction;
+                k += 1;
+            }
+            reaction
         })
         .collect()
+}
+
+/// How far the engine's own reaction at faster mechanics rates lies from the
+/// reference: whether the reference has converged in the tick, the floor under any
+/// rendering's error against it.
+fn reference_convergence(probe: &Probe, truth: &[Vector3<f64>], rms_truth: f64) {
+    println!(
+        "\nThe engine alone at other rates against the 1 kHz reference (RMS / RMS force): how far the reference itself has converged in the tick"
+    );
+    println!("| mechanics (Hz) | whole probe | before withdrawal |");
+    println!("|---|---|---|");
+    let withdrawal = (3.25 * HAPTIC_HZ) as usize;
+    for rate in [500.0, 2000.0, 4000.0] {
+        let run = engine_alone(probe, rate);
+        let (mut all, mut pressed) = (0.0, 0.0);
+        for (j, (a, b)) in run.iter().zip(truth).enumerate() {
+            let e = (a - b).norm_squared();
+            all += e;
+            if j < withdrawal {
+                pressed += e;
+            }
+        }
+        println!(
+            "| {rate} | {:.3} | {:.3} |",
+            (all / truth.len() as f64).sqrt() / rms_truth,
+            (pressed / withdrawal as f64).sqrt() / rms_truth
+        );
+    }
 }
 
 struct Row {
@@ -267,5 +309,6 @@ fn main() {
             );
         }
     }
+    reference_convergence(&probe, &truth, rms_truth);
     loop_on_its_thread();
 }
