@@ -212,11 +212,6 @@ impl<D: HapticDevice> ForceLoop<D> {
         }
     }
 
-    /// The passivity observer and controller.
-    pub fn passivity(&self) -> &Passivity {
-        &self.passivity
-    }
-
     /// The blender, with the models in use.
     pub fn blender(&self) -> &Blender {
         &self.blender

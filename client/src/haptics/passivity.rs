@@ -31,10 +31,11 @@
 //!   Counting the tick's own force, as Hannaford and Ryu's observer does with the
 //!   current force and velocity, catches the energy a stiff contact gives back on its
 //!   last tick before the contact ends; damping only after the fact, a mass thrown at
-//!   a stiff wall left it before the damper could act. `α` is capped at `α_max = K_max h / 4`, with `K_max` the
-//!   device's [`max_stiffness`](super::HapticDevice::max_stiffness): a discrete
-//!   damper on a mass `m` is stable while `α h / m < 2`, and a device that renders
-//!   `K_max` stably has `K_max ≤ 4 m / h²`, so `α_max h / m ≤ 1`. A device without a
+//!   a stiff wall left it before the damper could act. `α` is capped at
+//!   `α_max = K_max h / 4`, with `K_max` the device's
+//!   [`max_stiffness`](super::HapticDevice::max_stiffness): a discrete damper on a
+//!   mass `m` is stable while `α h / m < 2`, and a device that renders `K_max`
+//!   stably has `K_max ≤ 4 m / h²`, so `α_max h / m ≤ 1`. A device without a
 //!   stiffness limit (a script, with no dynamics to destabilise) gets no damper.
 //! - **Reset.** While the models give no force the environment stores nothing:
 //!   `E = 0`. The energy a contact dissipated (friction, the tissue's damping) does not
@@ -63,9 +64,8 @@ pub struct Passivity {
     /// Velocity of that point over the last tick, m/s, and the tick's length, s.
     velocity: Vector3<f64>,
     period: f64,
-    /// Ticks on which the damper acted, and the energy it was set to take back, J.
+    /// Ticks on which the damper acted.
     damped_ticks: u64,
-    damped_energy: f64,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -91,7 +91,6 @@ impl Passivity {
             velocity: Vector3::zeros(),
             period: 0.0,
             damped_ticks: 0,
-            damped_energy: 0.0,
         }
     }
 
@@ -110,9 +109,9 @@ impl Passivity {
         self.period = h;
     }
 
-    /// The force to render for the models' force `force` (N) applied at `point` (m, on
-    /// the axis): `force` itself, or with the damper while the environment has made
-    /// energy. No force resets the observer.
+    /// The force to render for the models' force `force` (N), at the point where it
+    /// applies: `force` itself, or with the damper while the environment would make
+    /// energy over the coming tick. No force resets the observer.
     pub fn control(&mut self, force: &Vector3<f64>) -> Vector3<f64> {
         if *force == Vector3::zeros() {
             self.energy = 0.0;
@@ -131,7 +130,6 @@ impl Passivity {
         }
         let alpha = (-predicted / (speed_squared * h)).min(self.max_damping_per_period * h);
         self.damped_ticks += 1;
-        self.damped_energy += alpha * speed_squared * h;
         force - self.velocity * alpha
     }
 
@@ -154,11 +152,6 @@ impl Passivity {
     /// Ticks on which the damper acted.
     pub fn damped_ticks(&self) -> u64 {
         self.damped_ticks
-    }
-
-    /// Energy the damper was set to take back, J (its sum of `α |v|² h`).
-    pub fn damped_energy(&self) -> f64 {
-        self.damped_energy
     }
 }
 

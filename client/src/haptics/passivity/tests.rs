@@ -11,8 +11,9 @@ const K_MAX: f64 = 200_000.0;
 /// back with `λ (wall(t) − z)` while the mass is behind it; the force loop's order at
 /// each tick (observe, control, render), and the mass moved exactly under the force
 /// held over the tick, as a device's handle moves (so that the work of the force over
-/// a tick is the change of kinetic energy). Returns the mass's kinetic energy once it has left the
-/// wall, J, and the most the damper added to the wall's force in one tick, N.
+/// a tick is the change of kinetic energy). Returns the mass's kinetic energy once it
+/// has left the wall, J, and the most the damper added to the wall's force in one
+/// tick, N.
 fn throw(passivity: &mut Passivity, lambda: f64, wall: impl Fn(f64) -> f64) -> (f64, f64) {
     let axis = Vector3::z_axis();
     let (mut z, mut v) = (0.002, -0.2);
