@@ -80,8 +80,8 @@ use stiffness::{Calibration, VertexMaterial};
 /// turns that off), which is what a press gives on every mesh alike. The paper's
 /// `Geometric` model stays as the scene's option: mesh-independent by construction
 /// but not the tissue's force. On the force-error bench's probe of the default
-/// liver at 60 Hz it is 98.7% RMS off the 1 kHz reaction, the calibrated model
-/// 16.8%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
+/// liver at 60 Hz it is 97.2% RMS off the 1 kHz reaction, the calibrated model
+/// 14.4%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
 /// reaction is 0.20–0.29 N on every liver (`cargo bench --bench convergence`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
