@@ -824,8 +824,9 @@ fn tip_press(
 }
 
 /// Smallest barycentric coordinate of the tip's nearest point for a triangle to lie
-/// flat against the tip ([`TipPress::flat`]): a point within a thousandth of a side
-/// is on that side as far as its normal goes.
+/// flat against the tip ([`TipPress::flat`]). `closest_point_triangle` gives exact
+/// zeros on a side or corner; the margin (a thousandth of the triangle) keeps a
+/// nearest point that lies on a side up to round-off from counting as inside.
 const FLAT_MARGIN: f64 = 1e-3;
 
 /// Distance from the axis, in radii, beyond which a held vertex is off the shaft's
