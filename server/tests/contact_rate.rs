@@ -5,13 +5,12 @@ mod common;
 
 use common::contact::*;
 use laparo_server::engine::scene::Scene;
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 
 /// The reaction on the left tip, one sample a millisecond, when the mechanics runs at
-/// `rate` Hz along the path of `a_tip_withdrawn_after_a_slide_lets_the_tissue_go`
-/// (`contact_release.rs`): in 18 mm past the free front's start in 1 s, slid 2 cm
-/// along +x, withdrawn to where it started, 3.5 s in all. Each sample is the
-/// reaction of the last tick at or before it.
+/// `rate` Hz along [`slide_and_withdraw`], the path of
+/// `a_tip_withdrawn_after_a_slide_lets_the_tissue_go` (`contact_release.rs`), 3.5 s
+/// in all. Each sample is the reaction of the last tick at or before it.
 fn reaction_history(rate: f64) -> Vec<Vector3<f64>> {
     let mut scene = Scene::default_scene();
     scene.mechanics.rate_hz = rate;
@@ -19,17 +18,12 @@ fn reaction_history(rate: f64) -> Vec<Vector3<f64>> {
     sim.solve_static();
     let trocar = sim.instruments[0].trocar;
     let start = front_point(&sim) + Vector3::new(-0.01, 0.0, 0.01);
-    let tip_at = |t: f64| -> Point3<f64> {
-        let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
-        let z = -0.018 * (ramp(0.0, 1.0) - ramp(2.5, 3.0));
-        start + Vector3::new(0.02 * ramp(1.25, 2.25), 0.0, z)
-    };
     let (mut reaction, mut k) = (Vector3::zeros(), 0u64);
     (0..3500)
         .map(|ms| {
             let t = ms as f64 * 1e-3;
             while k as f64 / rate <= t + 1e-9 {
-                let tip = tip_at(k as f64 / rate);
+                let tip = slide_and_withdraw(start, k as f64 / rate);
                 sim.set_pose(0, Some(pose(tip.into(), (trocar - tip).into())));
                 sim.tick();
                 reaction = sim.instruments[0].report.reaction;

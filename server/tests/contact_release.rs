@@ -161,15 +161,10 @@ fn a_tip_withdrawn_after_a_slide_lets_the_tissue_go() {
         let trocar = sim.instruments[0].trocar;
         let front = front_point(&sim);
         let start = front + nalgebra::Vector3::new(-0.01, 0.0, 0.01);
-        let tip_at = |t: f64| {
-            let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
-            let z = -0.018 * (ramp(0.0, 1.0) - ramp(2.5, 3.0));
-            start + nalgebra::Vector3::new(0.02 * ramp(1.25, 2.25), 0.0, z)
-        };
         let (mut dragged, mut last_held) = (0usize, 0.0);
         for k in 1..=ticks(&sim, 3.5) {
             let t = k as f64 * sim.dt;
-            let tip = tip_at(t);
+            let tip = slide_and_withdraw(start, t);
             let axis = trocar - tip;
             sim.set_pose(0, Some(pose(tip.into(), axis.into())));
             sim.tick();

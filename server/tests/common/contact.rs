@@ -164,3 +164,13 @@ pub fn front_vertex(sim: &Simulation) -> u32 {
         .find(|&&v| sim.state.x[v as usize] == p)
         .unwrap()
 }
+
+/// The tip's path of a slide and withdrawal on the default liver, at time `t` (s),
+/// from `start` (1 cm in front of the free front, 1 cm to −x of its middle): in
+/// 18 mm along −z over `[0, 1]`, slid 2 cm along +x over `[1.25, 2.25]`, back out
+/// along +z over `[2.5, 3]`, then still.
+pub fn slide_and_withdraw(start: Point3<f64>, t: f64) -> Point3<f64> {
+    let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
+    let z = -0.018 * (ramp(0.0, 1.0) - ramp(2.5, 3.0));
+    start + Vector3::new(0.02 * ramp(1.25, 2.25), 0.0, z)
+}

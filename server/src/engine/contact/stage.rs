@@ -40,7 +40,7 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
-use super::closest::closest_point_triangle;
+use super::closest::{TrianglePoint, closest_point_triangle};
 use super::edges::stop_colliding_edges;
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
@@ -809,7 +809,7 @@ fn tip_press(
             closest_point_triangle(tip, &tri)
         })
         .min_by(|a, b| {
-            let d = |c: &super::closest::TrianglePoint| (c.point - tip).norm_squared();
+            let d = |c: &TrianglePoint| (c.point - tip).norm_squared();
             d(a).total_cmp(&d(b))
         })?;
     let offset = nearest.point - tip;
