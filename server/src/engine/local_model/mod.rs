@@ -21,7 +21,9 @@
 //!
 //! where `x_i` is where the vertex is now and `F_i` where it was when last free: the
 //! surface before the instrument took it, with the sag under gravity and the dents of
-//! other instruments already in it ([`free`]). The anchor is `A = X + δ n` with `X` the
+//! other instruments already in it ([`free`]; a vertex let go and taken again within
+//! [`free::FREE_AFTER_S`] keeps where it was before it was first taken, not where it
+//! sprang back to). The anchor is `A = X + δ n` with `X` the
 //! tip `P` (tip plane) or the point of the axis level with the held vertices (shaft
 //! plane). At the model's pose the depth is then `δ`; pushing deeper by `h` makes it
 //! `δ + h`, withdrawing lowers it until the force vanishes; holding still keeps it, and
@@ -80,8 +82,8 @@ use stiffness::{Calibration, VertexMaterial};
 /// turns that off), which is what a press gives on every mesh alike. The paper's
 /// `Geometric` model stays as the scene's option: mesh-independent by construction
 /// but not the tissue's force. On the force-error bench's probe of the default
-/// liver at 60 Hz it is 97.2% RMS off the 1 kHz reaction, the calibrated model
-/// 14.4%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
+/// liver at 60 Hz it is 97.4% RMS off the 1 kHz reaction, the calibrated model
+/// 14.0%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
 /// reaction is 0.20–0.29 N on every liver (`cargo bench --bench convergence`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -200,7 +202,7 @@ impl LocalModelStage {
             self.forces[k] = split(&applied.force, &applied.point, &model.axis, &ins.trocar);
             self.models[k] = model;
         }
-        self.free.update(instruments, surface, x);
+        self.free.update(instruments, surface, x, time);
     }
 
     #[allow(clippy::too_many_arguments)]
