@@ -26,6 +26,6 @@ pub use crate::haptics::Trajectory;
 pub use press::{
     DEFAULT_DEPTH_M, DEFAULT_PERIOD_S, DEFAULT_STANDOFF_M, default_press, default_press_for, press,
 };
-pub use probe::{PROBE_SECONDS, Probe};
+pub use probe::{PROBE_PHASES, PROBE_SECONDS, Probe};
 pub use surface::{front, front_middle, nearest_surface_vertex, trocar};
 pub use tip_and_shaft::tip_and_shaft;

@@ -13,10 +13,27 @@ pub const PROBE_SECONDS: f64 = 4.0;
 /// How far in front of the surface the probe starts and ends, m.
 pub const PROBE_STANDOFF_M: f64 = 0.01;
 
-/// A probe of the front face. Phases, s: `[0, 0.25)` [`PROBE_STANDOFF_M`] in front
-/// of the surface; `[0.25, 1.25)` in to `depth` past the surface; `[1.25, 1.75)`
-/// held; `[1.75, 2.75)` sliding `slide` along +x; `[2.75, 3.25)` held;
-/// `[3.25, 3.75)` back out to the start; then still.
+/// The phases of a [`Probe`], in order: each one's name and start, s. Each lasts until
+/// the next starts; the last, until [`PROBE_SECONDS`].
+pub const PROBE_PHASES: [(&str, f64); 7] = [
+    ("stand-off", 0.0),
+    ("press", 0.25),
+    ("hold", 1.25),
+    ("slide", 1.75),
+    ("hold slid", 2.75),
+    ("withdraw", 3.25),
+    ("still", 3.75),
+];
+
+/// When phase `k` of [`PROBE_PHASES`] starts, s.
+const fn phase(k: usize) -> f64 {
+    PROBE_PHASES[k].1
+}
+
+/// A probe of the front face. Phases ([`PROBE_PHASES`]), s: `[0, 0.25)`
+/// [`PROBE_STANDOFF_M`] in front of the surface; `[0.25, 1.25)` in to `depth` past
+/// the surface; `[1.25, 1.75)` held; `[1.75, 2.75)` sliding `slide` along +x;
+/// `[2.75, 3.25)` held; `[3.25, 3.75)` back out to the start; then still.
 #[derive(Clone, Copy, Debug)]
 pub struct Probe {
     /// Where the tip starts, [`PROBE_STANDOFF_M`] in front of the surface, m.
@@ -52,8 +69,8 @@ impl Probe {
     pub fn tip(&self, t: f64) -> Point3<f64> {
         let ramp = |a: f64, b: f64| ((t - a) / (b - a)).clamp(0.0, 1.0);
         let inward = PROBE_STANDOFF_M + self.depth;
-        let z = -inward * (ramp(0.25, 1.25) - ramp(3.25, 3.75));
-        let x = self.slide * ramp(1.75, 2.75);
+        let z = -inward * (ramp(phase(1), phase(2)) - ramp(phase(5), phase(6)));
+        let x = self.slide * ramp(phase(3), phase(4));
         self.start + Vector3::new(x, 0.0, z)
     }
 
