@@ -11,7 +11,9 @@
 //! tick left it) lies from the reference: the part of the error that comes from the
 //! mechanics rate, not from the local model. Then the engine alone at 500, 2000 and
 //! 4000 Hz against the reference: how far the reference itself has converged in the
-//! tick. Then the loop on its own thread: achieved rate and period jitter.
+//! tick. Then where the calibrated model's error lies: each phase of the probe's part
+//! of it, and the 0.1 s that holds the most. Then the loop on its own thread:
+//! achieved rate and period jitter.
 //!
 //! `cargo bench -p laparo-tests --bench force_error` (`-- --mesh FILE` runs the probe
 //! on another liver with the default scene's settings, e.g.
@@ -19,7 +21,7 @@
 
 use std::time::{Duration, Instant};
 
-use laparo_client::gestures::{PROBE_SECONDS, Probe};
+use laparo_client::gestures::{PROBE_PHASES, PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
 use laparo_server::engine::contact::InstrumentPose;
@@ -77,6 +79,18 @@ fn haptic_ticks() -> usize {
     (PROBE_SECONDS * HAPTIC_HZ).round() as usize
 }
 
+/// The haptic tick at which the probe starts to withdraw.
+fn withdrawal() -> usize {
+    let (_, start) = PROBE_PHASES
+        .iter()
+        .find(|(name, _)| *name == "withdraw")
+        .expect("the probe withdraws");
+    (start * HAPTIC_HZ).round() as usize
+}
+
+/// Length of the window [`Row::worst`] looks for, haptic ticks (0.1 s).
+const WINDOW: usize = 100;
+
 /// The reaction at each haptic tick from a run of the engine at haptic rate.
 fn reference(probe: &Probe) -> Vec<Vector3<f64>> {
     engine_alone(probe, HAPTIC_HZ)
@@ -112,7 +126,7 @@ fn reference_convergence(probe: &Probe, truth: &[Vector3<f64>], rms_truth: f64) 
     );
     println!("| mechanics (Hz) | whole probe | before withdrawal |");
     println!("|---|---|---|");
-    let withdrawal = (3.25 * HAPTIC_HZ) as usize;
+    let withdrawal = withdrawal();
     for rate in [500.0, 2000.0, 4000.0] {
         let run = engine_alone(probe, rate);
         let (mut all, mut pressed) = (0.0, 0.0);
@@ -135,6 +149,12 @@ struct Row {
     rms: f64,
     /// RMS error up to the withdrawal (t < 3.25 s).
     rms_pressed: f64,
+    /// Each phase of [`PROBE_PHASES`]'s part of the error: the RMS over the whole probe
+    /// of the error within the phase (their squares add up to `rms²`), N.
+    phases: [f64; PROBE_PHASES.len()],
+    /// The [`WINDOW`] of haptic ticks holding the most of the error: its start, s,
+    /// and its part, as for a phase, N.
+    worst: (f64, f64),
     max: f64,
     max_step: f64,
     max_switch_jump: f64,
@@ -159,7 +179,9 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
         }
         cpu.push(c.server_seconds / PROBE_SECONDS);
         let (mut sum, mut max, mut pressed) = (0.0, 0.0f64, 0.0);
-        let withdrawal = (3.25 * HAPTIC_HZ) as usize;
+        let withdrawal = withdrawal();
+        let mut phases = [0.0; PROBE_PHASES.len()];
+        let mut squares = Vec::with_capacity(truth.len());
         for (j, (r, f)) in c.haptics.device().recorded().zip(truth).enumerate() {
             let e = (r.force.force - f).norm();
             sum += e * e;
@@ -167,10 +189,27 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             if j < withdrawal {
                 pressed += e * e;
             }
+            let t = j as f64 / HAPTIC_HZ;
+            let k = PROBE_PHASES.iter().rposition(|&(_, start)| start <= t);
+            phases[k.expect("the first phase starts at 0")] += e * e;
+            squares.push(e * e);
         }
+        let n = truth.len() as f64;
+        let (from, most) = (0..=squares.len().saturating_sub(WINDOW))
+            .map(|j| {
+                (
+                    j,
+                    squares[j..(j + WINDOW).min(squares.len())]
+                        .iter()
+                        .sum::<f64>(),
+                )
+            })
+            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         row = Some(Row {
-            rms: (sum / truth.len() as f64).sqrt(),
+            rms: (sum / n).sqrt(),
             rms_pressed: (pressed / withdrawal as f64).sqrt(),
+            phases: phases.map(|p| (p / n).sqrt()),
+            worst: (from as f64 / HAPTIC_HZ, (most / n).sqrt()),
             max,
             max_step: c.haptics.stats().max_force_step,
             max_switch_jump: c.max_switch_jump,
@@ -182,6 +221,39 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
     let mut row = row.expect("at least one repeat");
     row.server_cpu = cpu[cpu.len() / 2];
     row
+}
+
+/// Where the calibrated model's error lies in the probe: each phase's part, and the
+/// 0.1 s holding the most (RMS over the whole probe of the error within them / RMS
+/// force: the squares of the phases' parts add up to the whole's).
+fn error_by_phase(rows: &[(f64, Row)], rms_truth: f64) {
+    println!(
+        "\nThe calibrated model's error by phase of the probe: each phase's part, RMS over the whole probe / RMS force (their squares add up to the whole's), and the {} s holding the most",
+        WINDOW as f64 / HAPTIC_HZ
+    );
+    let names: Vec<String> = PROBE_PHASES
+        .iter()
+        .map(|(name, start)| format!("{name} from {start} s"))
+        .collect();
+    println!(
+        "| mechanics (Hz) | {} | worst {} s: from (s) | its part |",
+        names.join(" | "),
+        WINDOW as f64 / HAPTIC_HZ
+    );
+    println!("|---|{}---|---|", "---|".repeat(PROBE_PHASES.len()));
+    for (rate, r) in rows {
+        let parts: Vec<String> = r
+            .phases
+            .iter()
+            .map(|p| format!("{:.3}", p / rms_truth))
+            .collect();
+        println!(
+            "| {rate} | {} | {:.3} | {:.3} |",
+            parts.join(" | "),
+            r.worst.0,
+            r.worst.1 / rms_truth
+        );
+    }
 }
 
 fn loop_on_its_thread() {
@@ -293,6 +365,7 @@ fn main() {
         "| mechanics (Hz) | force model | RMS error (N) | RMS error / RMS force | RMS error before withdrawal (N) | max error (N) | largest step per haptic tick (N) | largest switch jump without blending (N) | server CPU s per simulated s (median of {REPEATS}) | the engine's own reaction at this rate vs the reference, RMS / RMS force |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
+    let mut calibrated = Vec::new();
     for rate in [15.0, 30.0, 60.0, 120.0] {
         for kind in [ForceModelKind::Geometric, ForceModelKind::Calibrated] {
             let r = coupled(&probe, rate, kind, &truth);
@@ -307,8 +380,12 @@ fn main() {
                 r.server_cpu,
                 r.rms_engine / rms_truth
             );
+            if kind == ForceModelKind::Calibrated {
+                calibrated.push((rate, r));
+            }
         }
     }
+    error_by_phase(&calibrated, rms_truth);
     reference_convergence(&probe, &truth, rms_truth);
     loop_on_its_thread();
 }
