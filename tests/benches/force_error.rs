@@ -195,15 +195,10 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             squares.push(e * e);
         }
         let n = truth.len() as f64;
-        let (from, most) = (0..=squares.len().saturating_sub(WINDOW))
-            .map(|j| {
-                (
-                    j,
-                    squares[j..(j + WINDOW).min(squares.len())]
-                        .iter()
-                        .sum::<f64>(),
-                )
-            })
+        let (from, most) = squares
+            .windows(WINDOW)
+            .map(|w| w.iter().sum::<f64>())
+            .enumerate()
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         row = Some(Row {
             rms: (sum / n).sqrt(),
