@@ -22,6 +22,9 @@ use crate::engine::mesh::Surface;
 /// the same contact.
 pub const FREE_AFTER_S: f64 = 0.1;
 
+// `update` relies on it: a vertex held this tick is not free.
+const _: () = assert!(FREE_AFTER_S > 0.0);
+
 /// For every surface vertex, its position at the end of the last tick in which no
 /// instrument held it, once it has been free for [`FREE_AFTER_S`].
 ///
@@ -33,7 +36,6 @@ pub const FREE_AFTER_S: f64 = 0.1;
 #[derive(Debug)]
 pub struct FreeSurface {
     position: Vec<Point3<f64>>,
-    held: Vec<bool>,
     /// The simulated time of the last tick each vertex was held at, s (−∞: never).
     last_held: Vec<f64>,
 }
@@ -43,7 +45,6 @@ impl FreeSurface {
     pub fn new(rest: &[Point3<f64>]) -> Self {
         FreeSurface {
             position: rest.to_vec(),
-            held: vec![false; rest.len()],
             last_held: vec![f64::NEG_INFINITY; rest.len()],
         }
     }
@@ -65,20 +66,14 @@ impl FreeSurface {
     ) {
         for ins in instruments {
             for &v in &ins.held {
-                self.held[v as usize] = true;
+                self.last_held[v as usize] = time;
             }
         }
+        // A vertex held this tick has been free for 0 s, less than FREE_AFTER_S (> 0).
         for &v in &surface.vertices {
             let v = v as usize;
-            if self.held[v] {
-                self.last_held[v] = time;
-            } else if time - self.last_held[v] >= FREE_AFTER_S {
+            if time - self.last_held[v] >= FREE_AFTER_S {
                 self.position[v] = x[v];
-            }
-        }
-        for ins in instruments {
-            for &v in &ins.held {
-                self.held[v as usize] = false;
             }
         }
     }
