@@ -79,13 +79,17 @@ fn haptic_ticks() -> usize {
     (PROBE_SECONDS * HAPTIC_HZ).round() as usize
 }
 
+/// The index in [`PROBE_PHASES`] of the probe's withdrawal.
+fn withdraw_phase() -> usize {
+    PROBE_PHASES
+        .iter()
+        .position(|(name, _)| *name == "withdraw")
+        .expect("the probe withdraws")
+}
+
 /// The haptic tick at which the probe starts to withdraw.
 fn withdrawal() -> usize {
-    let (_, start) = PROBE_PHASES
-        .iter()
-        .find(|(name, _)| *name == "withdraw")
-        .expect("the probe withdraws");
-    (start * HAPTIC_HZ).round() as usize
+    (PROBE_PHASES[withdraw_phase()].1 * HAPTIC_HZ).round() as usize
 }
 
 /// Length of the window [`Row::worst`] looks for, haptic ticks (0.1 s).
@@ -178,17 +182,13 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             engine += (c.sim.instruments[0].report.reaction - f).norm_squared();
         }
         cpu.push(c.server_seconds / PROBE_SECONDS);
-        let (mut sum, mut max, mut pressed) = (0.0, 0.0f64, 0.0);
-        let withdrawal = withdrawal();
+        let (mut sum, mut max) = (0.0, 0.0f64);
         let mut phases = [0.0; PROBE_PHASES.len()];
         let mut squares = Vec::with_capacity(truth.len());
         for (j, (r, f)) in c.haptics.device().recorded().zip(truth).enumerate() {
             let e = (r.force.force - f).norm();
             sum += e * e;
             max = max.max(e);
-            if j < withdrawal {
-                pressed += e * e;
-            }
             let t = j as f64 / HAPTIC_HZ;
             let k = PROBE_PHASES.iter().rposition(|&(_, start)| start <= t);
             phases[k.expect("the first phase starts at 0")] += e * e;
@@ -202,7 +202,8 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         row = Some(Row {
             rms: (sum / n).sqrt(),
-            rms_pressed: (pressed / withdrawal as f64).sqrt(),
+            rms_pressed: (phases[..withdraw_phase()].iter().sum::<f64>() / withdrawal() as f64)
+                .sqrt(),
             phases: phases.map(|p| (p / n).sqrt()),
             worst: (from as f64 / HAPTIC_HZ, (most / n).sqrt()),
             max,
