@@ -24,11 +24,10 @@ use std::time::{Duration, Instant};
 use laparo_client::gestures::{PROBE_PHASES, PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
-use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
-use laparo_tests::coupled::{Coupled, front_probe};
+use laparo_tests::coupled::{Coupled, front_probe, reaction_history};
 use nalgebra::{Point3, Unit, Vector3};
 
 const HAPTIC_HZ: f64 = 1000.0;
@@ -104,21 +103,7 @@ fn reference(probe: &Probe) -> Vec<Vector3<f64>> {
 /// reaction its last tick left (the pose of tick `k` is the probe's at `k / rate`).
 fn engine_alone(probe: &Probe, rate_hz: f64) -> Vec<Vector3<f64>> {
     let mut sim = settled(rate_hz, ForceModelKind::Geometric);
-    let mut reaction = Vector3::zeros();
-    let mut k = 0u64;
-    (0..haptic_ticks())
-        .map(|j| {
-            let t = j as f64 / HAPTIC_HZ;
-            while k as f64 / rate_hz <= t + 1e-9 {
-                let (tip, axis) = probe.pose(k as f64 / rate_hz);
-                sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
-                sim.tick();
-                reaction = sim.instruments[0].report.reaction;
-                k += 1;
-            }
-            reaction
-        })
-        .collect()
+    reaction_history(&mut sim, probe, haptic_ticks(), HAPTIC_HZ)
 }
 
 /// How far the engine's own reaction at faster mechanics rates lies from the

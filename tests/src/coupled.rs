@@ -6,6 +6,7 @@ use laparo_client::gestures::Probe;
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, HapticDevice, ModelInbox, PoseOutbox};
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::simulation::Simulation;
+use nalgebra::Vector3;
 
 /// Instrument 0 of `sim` driven by a force loop's device.
 ///
@@ -115,4 +116,33 @@ pub fn front_probe(sim: &Simulation, depth: f64, slide: f64) -> Probe {
         .map(|&v| sim.state.x[v as usize]);
     Probe::on_front(surface, sim.instruments[0].trocar, depth, slide)
         .expect("the default liver has a front face")
+}
+
+/// The engine alone, with no force loop: `sim` driven along `probe` by instrument 0
+/// at its own rate (tick `k` takes the probe's pose at `k · dt`), sampled `samples`
+/// times at `sample_hz` from `t = 0`. Each sample is the reaction on the instrument
+/// that the last tick at or before it left (zero before the first tick).
+pub fn reaction_history(
+    sim: &mut Simulation,
+    probe: &Probe,
+    samples: usize,
+    sample_hz: f64,
+) -> Vec<Vector3<f64>> {
+    let mut reaction = Vector3::zeros();
+    let mut k = 0u64;
+    (0..samples)
+        .map(|j| {
+            let t = j as f64 / sample_hz;
+            // The slack keeps a tick due at the sample's instant from being read as
+            // one after it through round-off of `k · dt`.
+            while k as f64 * sim.dt <= t + 1e-9 {
+                let (tip, axis) = probe.pose(k as f64 * sim.dt);
+                sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
+                sim.tick();
+                reaction = sim.instruments[0].report.reaction;
+                k += 1;
+            }
+            reaction
+        })
+        .collect()
 }

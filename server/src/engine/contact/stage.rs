@@ -708,8 +708,8 @@ enum Hold {
 /// 5.00 to 5.21 mm from the tip in six ticks, past [`OFF_SHAFT`]·r, and let all three
 /// vertices go while the tissue still pressed one of them with 1.5 N; the tissue
 /// sprang back 7 mm and was caught again the next tick with a 0.3 N spike, at a time
-/// set by the tick (`tests/contact_rate.rs`). Taking `ĉ` for the normal of the law
-/// instead upset the frictionless tip in the Hertz blocks
+/// set by the tick (the workspace's `tests/tests/reaction_rate.rs`). Taking `ĉ` for
+/// the normal of the law instead upset the frictionless tip in the Hertz blocks
 /// (`tests/contact_footprint.rs`): for the vertices off the body only, the contact
 /// set still shifted after 40 passes; for those on the tip's end too, the coarse
 /// block's force rose to 1.31× the fine one's.
