@@ -12,8 +12,9 @@
 //! mechanics rate, not from the local model. Then the engine alone at 500, 2000 and
 //! 4000 Hz against the reference: how far the reference itself has converged in the
 //! tick. Then where the calibrated model's error lies: each phase of the probe's part
-//! of it, and the 0.1 s that holds the most. Then the loop on its own thread:
-//! achieved rate and period jitter.
+//! of it, and the 0.1 s that holds the most. Then the steps of the reference itself:
+//! the ticks at which it lets go of tissue that still pushes on the tip, and why.
+//! Then the loop on its own thread: achieved rate and period jitter.
 //!
 //! `cargo bench -p laparo-tests --bench force_error` (`-- --mesh FILE` runs the probe
 //! on another liver with the default scene's settings, e.g.
@@ -24,6 +25,8 @@ use std::time::{Duration, Instant};
 use laparo_client::gestures::{PROBE_PHASES, PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
+use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::contact::closest::closest_point_triangle;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
@@ -204,6 +207,71 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
     row
 }
 
+/// Where the reference lets go of tissue that still pushes on the instrument: the
+/// 1 kHz engine along the probe, every tick at which the vertices it let go had
+/// carried, at the tick before, reactions summing to more than a tenth of the RMS
+/// force. For each: when, how many vertices, the reaction they carried, the
+/// instrument's reaction before and after, and how near the tip `P` the nearest of
+/// their surface triangles came after the tick, in radii (the contact stage keeps a
+/// vertex laid on the tip plane beside the shaft while one of its triangles is within
+/// 1.05 r of `P`). Such a step happens within one tick of the
+/// engine; a force loop fed at a lower mechanics rate learns of it only with the
+/// next model, so that a step `F` rendered `L` late costs `F √(L / T)` of RMS error
+/// over the probe's `T`, whatever the force model.
+fn let_go_while_pushing(probe: &Probe, rms_truth: f64) {
+    println!(
+        "\nThe reference's let-go steps: ticks of the 1 kHz engine at which the vertices let go had carried more than a tenth of the RMS force"
+    );
+    println!(
+        "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let mut sim = settled(HAPTIC_HZ, ForceModelKind::Geometric);
+    let mut held: Vec<(u32, Vector3<f64>)> = Vec::new();
+    let mut before = Vector3::zeros();
+    for k in 0..haptic_ticks() {
+        let (tip, axis) = probe.pose(k as f64 / HAPTIC_HZ);
+        sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
+        sim.tick();
+        let ins = &sim.instruments[0];
+        let gone: Vec<(u32, Vector3<f64>)> = held
+            .iter()
+            .filter(|(v, _)| !ins.held.contains(v))
+            .copied()
+            .collect();
+        let carried: Vector3<f64> = gone.iter().map(|(_, f)| f).sum();
+        if carried.norm() > 0.1 * rms_truth {
+            let surface = &sim.mesh.surface;
+            let nearest = gone
+                .iter()
+                .filter_map(|&(v, _)| surface.slot(v))
+                .flat_map(|slot| surface.triangles_around(slot))
+                .map(|&t| {
+                    let corners = surface.triangles[t as usize].map(|w| sim.state.x[w as usize]);
+                    (closest_point_triangle(&tip, &corners).point - tip).norm()
+                })
+                .fold(f64::INFINITY, f64::min);
+            println!(
+                "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
+                k as f64 / HAPTIC_HZ,
+                gone.len(),
+                carried.norm(),
+                before.norm(),
+                ins.report.reaction.norm(),
+                nearest / ins.radius
+            );
+        }
+        held.clear();
+        held.extend(
+            ins.held
+                .iter()
+                .copied()
+                .zip(ins.report.held_reactions.iter().copied()),
+        );
+        before = ins.report.reaction;
+    }
+}
+
 /// Where the calibrated model's error lies in the probe: each phase's part, and the
 /// 0.1 s holding the most (RMS over the whole probe of the error within them / RMS
 /// force: the squares of the phases' parts add up to the whole's).
@@ -368,5 +436,6 @@ fn main() {
     }
     error_by_phase(&calibrated, rms_truth);
     reference_convergence(&probe, &truth, rms_truth);
+    let_go_while_pushing(&probe, rms_truth);
     loop_on_its_thread();
 }
