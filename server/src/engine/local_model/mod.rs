@@ -85,6 +85,11 @@ use stiffness::{Calibration, VertexMaterial};
 /// liver at 60 Hz it is 97.4% RMS off the 1 kHz reaction, the calibrated model
 /// 14.0%; pressed 8 mm it renders the flat punch's 0.45 N where the footprint's
 /// reaction is 0.20–0.29 N on every liver (`cargo bench --bench convergence`).
+/// Most of the calibrated model's error is not the model's: it lies where the
+/// reaction itself steps within a tick, which a model a tick old cannot foresee. On
+/// that probe the 1 kHz engine drops 0.68 N to nothing in one tick of the
+/// withdrawal, when the tissue laid on the tip plane beside the shaft has slid
+/// 1.05 r from the tip and is let go (the bench's let-go table).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ForceModelKind {
