@@ -27,7 +27,7 @@ pub fn finish_when_closed() {
     FINISH_WHEN_CLOSED.store(true, Ordering::Relaxed);
 }
 
-/// Prints one line to standard output through [`line`], as `println!` would.
+/// Prints one line to standard output through [`line`](fn@line), as `println!` would.
 macro_rules! say {
     () => {
         $crate::cmd::out::line(format_args!(""))

@@ -83,7 +83,7 @@ impl LocalModel {
     ///   its own lever arm rather than the tip's.
     /// - Each plane that carries a drag (the calibrated model's) adds it, with the
     ///   held tissue's pull back toward where its contact point (`P`, or `Q`) was at
-    ///   the model's pose ([`held_drag`]).
+    ///   the model's pose (`held_drag` below).
     /// - The two combine by eq. 9 ([`combine`]); the result applies at the
     ///   magnitude-weighted point `C = (|f₀| P + |f₁| Q) / (|f₀| + |f₁|)`, which moves
     ///   continuously from `P` to `Q` as the contacts change (and is `P` without force).

@@ -45,13 +45,13 @@
 //!   handle (never mapped: a file cut short under a reader is an error, not SIGBUS).
 //! - [`reader`]: opens a recording, checks its version, decodes its messages.
 //! - [`summary`]: what a reviewer wants first: duration, path lengths, forces.
-//! - [`list`]: what a recordings directory holds: session, scene, start,
+//! - [`list`](mod@list): what a recordings directory holds: session, scene, start,
 //!   duration, size, and whether a file is finished, still being written or was
 //!   cut short; only regular files, never through a symbolic link, read within
 //!   stated bounds and cached by name, size and modification time.
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
-//! - [`recover`]: rewrites the file a killed server left into a valid, indexed one.
+//! - [`recover`](mod@recover): rewrites the file a killed server left into a valid, indexed one.
 //! - [`resim`]: runs the recorded poses through the recorded scene again and
 //!   compares: zero deviation with the same build, since the engine is
 //!   deterministic.

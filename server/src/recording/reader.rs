@@ -4,7 +4,7 @@
 //! A file that is not MCAP, is corrupt or was cut short gets a [`ReadError`] naming
 //! the file and what is wrong; nothing here panics on bad input. A file cut short
 //! (a killed server, or a session still running) has no summary: [`Recording::open`]
-//! says so and [`super::recover`] rewrites it into a complete one;
+//! says so and [`super::recover`](fn@super::recover) rewrites it into a complete one;
 //! [`Recording::open_unfinished`] reads what it holds so far. Bytes come through a
 //! [`Source`], a record at a time, with the bounds stated by the constants here and
 //! in [`super::records`].

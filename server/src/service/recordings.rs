@@ -11,7 +11,7 @@
 //! status, and what comes from files or clients (names, metadata) is escaped
 //! ([`printable`]) in statuses and listings.
 //!
-//! `ListRecordings` gives the files [`crate::recording::list`] reads, each with
+//! `ListRecordings` gives the files [`crate::recording::list`](fn@crate::recording::list) reads, each with
 //! its state: finished, still written by a session of this server (with what its
 //! complete chunks hold), or unfinished — cut short by a stopped server, listed
 //! with what its complete chunks hold so that a crash does not hide recoverable
@@ -76,7 +76,7 @@ pub enum Playback {
     /// The recorded frames, instrument states and events as they were.
     Recorded,
     /// The recorded poses through a fresh build of the recorded scene
-    /// ([`super::replay::read_resimulated`]).
+    /// ([`super::replay::ReadResimulated`]).
     Resimulate,
 }
 

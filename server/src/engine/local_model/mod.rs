@@ -32,7 +32,7 @@
 //! # Stiffness
 //!
 //! - `geometric` (the paper): `λ` proportional to the average Young's modulus near the
-//!   contact ([`stiffness::geometric`]);
+//!   contact ([`stiffness::geometric_tip`], [`stiffness::geometric_shaft`]);
 //! - `calibrated`: `λ` and the anchor fitted so that the model reproduces, at the
 //!   tick's pose, the elastic model's reaction on the vertices each plane holds
 //!   ([`stiffness::Fit`]): its push along the plane's normal by the plane, and its

@@ -155,7 +155,7 @@ pub struct MechanicsSpec {
     pub preconditioner: PreconditionerKind,
     /// Threads an implicit tick shares its products, vector updates and corotational
     /// update with, this session's mechanics thread included (1 to
-    /// [`MAX_THREADS`](crate::engine::workers::MAX_THREADS); default 1; no more run
+    /// [`crate::engine::workers::MAX_THREADS`]; default 1; no more run
     /// than the machine has cores). A mesh is split into one part a thread, each of
     /// at least [`MIN_PART_VERTICES`](crate::engine::elastic::MIN_PART_VERTICES)
     /// vertices, and then renumbered when loaded; results differ from one part's in
