@@ -214,10 +214,10 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
 /// instrument's reaction before and after, and how near the tip `P` the nearest of
 /// their surface triangles came after the tick, in radii (the contact stage keeps a
 /// vertex laid on the tip plane beside the shaft while one of its triangles is within
-/// 1.05 r of `P`). Such a step happens within one tick of the
-/// engine; a force loop fed at a lower mechanics rate learns of it only with the
-/// next model, so that a step `F` rendered `L` late costs `F √(L / T)` of RMS error
-/// over the probe's `T`, whatever the force model.
+/// 1.05 r of `P`). Such a step happens within one tick of the engine; a force loop
+/// fed at a lower mechanics rate learns of it only with the next model, so that a
+/// step `F` rendered `L` late costs `F √(L / T)` of RMS error over the probe's `T`,
+/// whatever the force model.
 fn let_go_while_pushing(probe: &Probe, rms_truth: f64) {
     println!(
         "\nThe reference's let-go steps: ticks of the 1 kHz engine at which the vertices let go had carried more than a tenth of the RMS force"
