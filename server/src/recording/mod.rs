@@ -51,7 +51,8 @@
 //!   stated bounds and cached by name, size and modification time.
 //! - [`records`]: walks a file's records, bounding every length a damaged file
 //!   states.
-//! - [`recover`](mod@recover): rewrites the file a killed server left into a valid, indexed one.
+//! - [`recover`](mod@recover): rewrites the file a killed server left into a valid,
+//!   indexed one.
 //! - [`resim`]: runs the recorded poses through the recorded scene again and
 //!   compares: zero deviation with the same build, since the engine is
 //!   deterministic.
