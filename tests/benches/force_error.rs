@@ -25,7 +25,6 @@ use std::time::{Duration, Instant};
 use laparo_client::gestures::{PROBE_PHASES, PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
-use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::contact::closest::closest_point_triangle;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
@@ -97,16 +96,39 @@ fn withdrawal() -> usize {
 /// Length of the window [`Row::worst`] looks for, haptic ticks (0.1 s).
 const WINDOW: usize = 100;
 
-/// The reaction at each haptic tick from a run of the engine at haptic rate.
-fn reference(probe: &Probe) -> Vec<Vector3<f64>> {
-    engine_alone(probe, HAPTIC_HZ)
+/// The reaction at each haptic tick from a run of the engine at haptic rate, and the
+/// ticks of that run at which it let go of held vertices that carried a force.
+fn reference(probe: &Probe) -> (Vec<Vector3<f64>>, Vec<LetGo>) {
+    let mut sim = settled(HAPTIC_HZ, ForceModelKind::Geometric);
+    let mut watch = LetGoWatch::default();
+    let truth = reaction_history(&mut sim, probe, haptic_ticks(), HAPTIC_HZ, |sim, t| {
+        watch.after_tick(sim, t)
+    });
+    (truth, watch.steps)
 }
 
 /// The engine alone at `rate_hz`, driven along the probe: at each haptic tick, the
 /// reaction its last tick left (the pose of tick `k` is the probe's at `k / rate`).
 fn engine_alone(probe: &Probe, rate_hz: f64) -> Vec<Vector3<f64>> {
     let mut sim = settled(rate_hz, ForceModelKind::Geometric);
-    reaction_history(&mut sim, probe, haptic_ticks(), HAPTIC_HZ)
+    reaction_history(&mut sim, probe, haptic_ticks(), HAPTIC_HZ, |_, _| {})
+}
+
+/// The sum of `squares`, one a haptic tick from `t = 0`, within each phase of
+/// [`PROBE_PHASES`].
+fn by_phase(squares: impl IntoIterator<Item = f64>) -> [f64; PROBE_PHASES.len()] {
+    let mut phases = [0.0; PROBE_PHASES.len()];
+    for (j, e) in squares.into_iter().enumerate() {
+        let t = j as f64 / HAPTIC_HZ;
+        let k = PROBE_PHASES.iter().rposition(|&(_, start)| start <= t);
+        phases[k.expect("the first phase starts at 0")] += e;
+    }
+    phases
+}
+
+/// The part of [`by_phase`]'s sums before the withdrawal.
+fn before_withdrawal(phases: &[f64; PROBE_PHASES.len()]) -> f64 {
+    phases[..withdraw_phase()].iter().sum()
 }
 
 /// How far the engine's own reaction at faster mechanics rates lies from the
@@ -118,28 +140,20 @@ fn reference_convergence(probe: &Probe, truth: &[Vector3<f64>], rms_truth: f64) 
     );
     println!("| mechanics (Hz) | whole probe | before withdrawal |");
     println!("|---|---|---|");
-    let withdrawal = withdrawal();
     for rate in [500.0, 2000.0, 4000.0] {
         let run = engine_alone(probe, rate);
-        let (mut all, mut pressed) = (0.0, 0.0);
-        for (j, (a, b)) in run.iter().zip(truth).enumerate() {
-            let e = (a - b).norm_squared();
-            all += e;
-            if j < withdrawal {
-                pressed += e;
-            }
-        }
+        let phases = by_phase(run.iter().zip(truth).map(|(a, b)| (a - b).norm_squared()));
         println!(
             "| {rate} | {:.3} | {:.3} |",
-            (all / truth.len() as f64).sqrt() / rms_truth,
-            (pressed / withdrawal as f64).sqrt() / rms_truth
+            (phases.iter().sum::<f64>() / truth.len() as f64).sqrt() / rms_truth,
+            (before_withdrawal(&phases) / withdrawal() as f64).sqrt() / rms_truth
         );
     }
 }
 
 struct Row {
     rms: f64,
-    /// RMS error up to the withdrawal (t < 3.25 s).
+    /// RMS error up to the withdrawal.
     rms_pressed: f64,
     /// Each phase of [`PROBE_PHASES`]'s part of the error: the RMS over the whole probe
     /// of the error within the phase (their squares add up to `rms²`), N.
@@ -170,18 +184,15 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             engine += (c.sim.instruments[0].report.reaction - f).norm_squared();
         }
         cpu.push(c.server_seconds / PROBE_SECONDS);
-        let (mut sum, mut max) = (0.0, 0.0f64);
-        let mut phases = [0.0; PROBE_PHASES.len()];
-        let mut squares = Vec::with_capacity(truth.len());
-        for (j, (r, f)) in c.haptics.device().recorded().zip(truth).enumerate() {
-            let e = (r.force.force - f).norm();
-            sum += e * e;
-            max = max.max(e);
-            let t = j as f64 / HAPTIC_HZ;
-            let k = PROBE_PHASES.iter().rposition(|&(_, start)| start <= t);
-            phases[k.expect("the first phase starts at 0")] += e * e;
-            squares.push(e * e);
-        }
+        let squares: Vec<f64> = c
+            .haptics
+            .device()
+            .recorded()
+            .zip(truth)
+            .map(|(r, f)| (r.force.force - f).norm_squared())
+            .collect();
+        let max = squares.iter().fold(0.0f64, |m, &e| m.max(e)).sqrt();
+        let phases = by_phase(squares.iter().copied());
         let n = truth.len() as f64;
         let (from, most) = squares
             .windows(WINDOW)
@@ -189,9 +200,8 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
             .enumerate()
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         row = Some(Row {
-            rms: (sum / n).sqrt(),
-            rms_pressed: (phases[..withdraw_phase()].iter().sum::<f64>() / withdrawal() as f64)
-                .sqrt(),
+            rms: (phases.iter().sum::<f64>() / n).sqrt(),
+            rms_pressed: (before_withdrawal(&phases) / withdrawal() as f64).sqrt(),
             phases: phases.map(|p| (p / n).sqrt()),
             worst: (from as f64 / HAPTIC_HZ, (most / n).sqrt()),
             max,
@@ -207,8 +217,73 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
     row
 }
 
+/// A tick of the reference at which it let go of held vertices that carried a force.
+struct LetGo {
+    /// The tick's time, s.
+    t: f64,
+    vertices: usize,
+    /// The sum of their reactions at the tick before, N.
+    carried: f64,
+    /// The instrument's reaction at the tick before and at this one, N.
+    before: f64,
+    after: f64,
+    /// How near the tip `P` the nearest of their surface triangles came after the
+    /// tick, in radii.
+    nearest: f64,
+}
+
+/// Follows a run tick by tick for [`LetGo`] steps.
+#[derive(Default)]
+struct LetGoWatch {
+    /// The vertices instrument 0 held at the last tick, with their reactions.
+    held: Vec<(u32, Vector3<f64>)>,
+    before: Vector3<f64>,
+    steps: Vec<LetGo>,
+}
+
+impl LetGoWatch {
+    fn after_tick(&mut self, sim: &Simulation, t: f64) {
+        let ins = &sim.instruments[0];
+        let gone: Vec<(u32, Vector3<f64>)> = self
+            .held
+            .iter()
+            .filter(|(v, _)| !ins.held.contains(v))
+            .copied()
+            .collect();
+        let carried: Vector3<f64> = gone.iter().map(|(_, f)| f).sum();
+        if let Some(pose) = ins.current.filter(|_| carried.norm() > 0.0) {
+            let surface = &sim.mesh.surface;
+            let nearest = gone
+                .iter()
+                .filter_map(|&(v, _)| surface.slot(v))
+                .flat_map(|slot| surface.triangles_around(slot))
+                .map(|&k| {
+                    let corners = surface.triangles[k as usize].map(|w| sim.state.x[w as usize]);
+                    (closest_point_triangle(&pose.tip, &corners).point - pose.tip).norm()
+                })
+                .fold(f64::INFINITY, f64::min);
+            self.steps.push(LetGo {
+                t,
+                vertices: gone.len(),
+                carried: carried.norm(),
+                before: self.before.norm(),
+                after: ins.report.reaction.norm(),
+                nearest: nearest / ins.radius,
+            });
+        }
+        self.held.clear();
+        self.held.extend(
+            ins.held
+                .iter()
+                .copied()
+                .zip(ins.report.held_reactions.iter().copied()),
+        );
+        self.before = ins.report.reaction;
+    }
+}
+
 /// Where the reference lets go of tissue that still pushes on the instrument: the
-/// 1 kHz engine along the probe, every tick at which the vertices it let go had
+/// `steps` of the 1 kHz engine along the probe at which the vertices it let go had
 /// carried, at the tick before, reactions summing to more than a tenth of the RMS
 /// force. For each: when, how many vertices, the reaction they carried, the
 /// instrument's reaction before and after, and how near the tip `P` the nearest of
@@ -218,7 +293,7 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
 /// fed at a lower mechanics rate learns of it only with the next model, so that a
 /// step `F` rendered `L` late costs `F √(L / T)` of RMS error over the probe's `T`,
 /// whatever the force model.
-fn let_go_while_pushing(probe: &Probe, rms_truth: f64) {
+fn let_go_while_pushing(steps: &[LetGo], rms_truth: f64) {
     println!(
         "\nThe reference's let-go steps: ticks of the 1 kHz engine at which the vertices let go had carried more than a tenth of the RMS force"
     );
@@ -226,49 +301,11 @@ fn let_go_while_pushing(probe: &Probe, rms_truth: f64) {
         "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) |"
     );
     println!("|---|---|---|---|---|---|");
-    let mut sim = settled(HAPTIC_HZ, ForceModelKind::Geometric);
-    let mut held: Vec<(u32, Vector3<f64>)> = Vec::new();
-    let mut before = Vector3::zeros();
-    for k in 0..haptic_ticks() {
-        let (tip, axis) = probe.pose(k as f64 / HAPTIC_HZ);
-        sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
-        sim.tick();
-        let ins = &sim.instruments[0];
-        let gone: Vec<(u32, Vector3<f64>)> = held
-            .iter()
-            .filter(|(v, _)| !ins.held.contains(v))
-            .copied()
-            .collect();
-        let carried: Vector3<f64> = gone.iter().map(|(_, f)| f).sum();
-        if carried.norm() > 0.1 * rms_truth {
-            let surface = &sim.mesh.surface;
-            let nearest = gone
-                .iter()
-                .filter_map(|&(v, _)| surface.slot(v))
-                .flat_map(|slot| surface.triangles_around(slot))
-                .map(|&t| {
-                    let corners = surface.triangles[t as usize].map(|w| sim.state.x[w as usize]);
-                    (closest_point_triangle(&tip, &corners).point - tip).norm()
-                })
-                .fold(f64::INFINITY, f64::min);
-            println!(
-                "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
-                k as f64 / HAPTIC_HZ,
-                gone.len(),
-                carried.norm(),
-                before.norm(),
-                ins.report.reaction.norm(),
-                nearest / ins.radius
-            );
-        }
-        held.clear();
-        held.extend(
-            ins.held
-                .iter()
-                .copied()
-                .zip(ins.report.held_reactions.iter().copied()),
+    for g in steps.iter().filter(|g| g.carried > 0.1 * rms_truth) {
+        println!(
+            "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            g.t, g.vertices, g.carried, g.before, g.after, g.nearest
         );
-        before = ins.report.reaction;
     }
 }
 
@@ -388,7 +425,7 @@ fn main() {
         return;
     }
     let probe = front_probe(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
-    let truth = reference(&probe);
+    let (truth, let_go) = reference(&probe);
     let args: Vec<String> = std::env::args().collect();
     if let Some(k) = args.iter().position(|a| a == "--trace") {
         let rate = args
@@ -436,6 +473,6 @@ fn main() {
     }
     error_by_phase(&calibrated, rms_truth);
     reference_convergence(&probe, &truth, rms_truth);
-    let_go_while_pushing(&probe, rms_truth);
+    let_go_while_pushing(&let_go, rms_truth);
     loop_on_its_thread();
 }

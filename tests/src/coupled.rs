@@ -122,11 +122,13 @@ pub fn front_probe(sim: &Simulation, depth: f64, slide: f64) -> Probe {
 /// at its own rate (tick `k` takes the probe's pose at `k · dt`), sampled `samples`
 /// times at `sample_hz` from `t = 0`. Each sample is the reaction on the instrument
 /// that the last tick at or before it left (zero before the first tick).
+/// `after_tick(sim, t)` sees the simulation after each tick, `t` the tick's time.
 pub fn reaction_history(
     sim: &mut Simulation,
     probe: &Probe,
     samples: usize,
     sample_hz: f64,
+    mut after_tick: impl FnMut(&Simulation, f64),
 ) -> Vec<Vector3<f64>> {
     let mut reaction = Vector3::zeros();
     let mut k = 0u64;
@@ -136,9 +138,11 @@ pub fn reaction_history(
             // The slack keeps a tick due at the sample's instant from being read as
             // one after it through round-off of `k · dt`.
             while k as f64 * sim.dt <= t + 1e-9 {
-                let (tip, axis) = probe.pose(k as f64 * sim.dt);
+                let at = k as f64 * sim.dt;
+                let (tip, axis) = probe.pose(at);
                 sim.set_pose(0, Some(InstrumentPose::new(tip, axis)));
                 sim.tick();
+                after_tick(sim, at);
                 reaction = sim.instruments[0].report.reaction;
                 k += 1;
             }
