@@ -30,10 +30,10 @@ const fn phase(k: usize) -> f64 {
     PROBE_PHASES[k].1
 }
 
-/// A probe of the front face. Phases ([`PROBE_PHASES`]), s: `[0, 0.25)`
-/// [`PROBE_STANDOFF_M`] in front of the surface; `[0.25, 1.25)` in to `depth` past
-/// the surface; `[1.25, 1.75)` held; `[1.75, 2.75)` sliding `slide` along +x;
-/// `[2.75, 3.25)` held; `[3.25, 3.75)` back out to the start; then still.
+/// A probe of the front face, through the phases of [`PROBE_PHASES`]: a stand-off
+/// [`PROBE_STANDOFF_M`] in front of the surface; a press in to `depth` past the
+/// surface; a hold; a slide of `slide` along +x; a hold; a withdrawal back out to the
+/// start; then still.
 #[derive(Clone, Copy, Debug)]
 pub struct Probe {
     /// Where the tip starts, [`PROBE_STANDOFF_M`] in front of the surface, m.
