@@ -21,13 +21,15 @@
 //! Files: `gmsh` parses the text, `topology` orients and builds edges and the surface
 //! (in indices), `assemble` runs the checks in order and names faults by file ids and
 //! lines, `error` defines the errors, `surface` the boundary surface and its normals,
-//! `order` a vertex numbering with locality.
+//! `order` a vertex numbering with locality, `refine` uniform refinement (every
+//! tetrahedron into eight, the shape kept).
 
 mod assemble;
 mod error;
 pub mod generate;
 mod gmsh;
 mod order;
+mod refine;
 mod surface;
 mod topology;
 

@@ -337,3 +337,4 @@ mod file_faults;
 mod generated;
 mod geometry_faults;
 mod order;
+mod refine;

@@ -17,8 +17,8 @@ mod schema;
 pub use error::SceneError;
 pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, open_nonblocking, read_bounded};
 pub use schema::{
-    BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MaterialSpec, MechanicsSpec, MeshSpec,
-    RecordingSpec, RegionSpec, Scene,
+    BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MAX_REFINE, MAX_REFINED_TETS, MaterialSpec,
+    MechanicsSpec, MeshSpec, RecordingSpec, RegionSpec, Scene,
 };
 
 /// The default scene, embedded in the binary: SOFA's liver scaled to about 0.2 m,

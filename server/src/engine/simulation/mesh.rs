@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use crate::engine::elastic::part_count;
 use crate::engine::mesh::{MeshError, MeshErrorKind, TetMesh, read_gmsh, reverse_cuthill_mckee};
 use crate::engine::scene::{
-    BUILTIN_MESHES, FileError, MAX_MESH_BYTES, Scene, SceneError, read_bounded,
+    BUILTIN_MESHES, FileError, MAX_MESH_BYTES, MAX_REFINED_TETS, Scene, SceneError, read_bounded,
 };
 
 /// Meshes with at least this many vertices are renumbered by reverse Cuthill–McKee
@@ -22,13 +22,31 @@ use crate::engine::scene::{
 /// ([`crate::engine::elastic::parts`]), which need the locality.
 pub const RENUMBER_VERTICES: usize = 32_768;
 
-/// The scene's mesh in metres: `mesh.file` read, renumbered from
+/// The scene's mesh in metres: `mesh.file` read, refined `mesh.refine` times,
+/// renumbered from
 /// [`RENUMBER_VERTICES`] vertices up or when split among threads, scaled by
 /// `mesh.scale`, and with `mesh.center` its bounding-box centre moved to the
 /// origin; its extent checked against the scene
 /// limits.
 pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
     let mut mesh = read(scene)?;
+    let refine = scene.mesh.refine;
+    let tets = (mesh.tets.len() as u64).saturating_mul(8u64.saturating_pow(refine));
+    if tets > MAX_REFINED_TETS as u64 {
+        return Err(scene.invalid(
+            "mesh.refine",
+            format!(
+                "{} tetrahedra refined {refine} times would be {tets}, more than {MAX_REFINED_TETS}",
+                mesh.tets.len()
+            ),
+        ));
+    }
+    for _ in 0..refine {
+        mesh = mesh.refined().map_err(|source| SceneError::Mesh {
+            scene: scene.source.clone(),
+            source,
+        })?;
+    }
     let n = mesh.vertex_count();
     if n >= RENUMBER_VERTICES || part_count(n, scene.mechanics.threads) > 1 {
         mesh = mesh.renumbered(&reverse_cuthill_mckee(mesh.vertex_count(), &mesh.edges));

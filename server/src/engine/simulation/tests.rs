@@ -110,4 +110,5 @@ fn regions_get_their_own_material() {
 
 mod f32_stiffness;
 mod local_models;
+mod refined;
 mod renumbered;

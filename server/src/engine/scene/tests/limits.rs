@@ -206,3 +206,28 @@ fn a_cg_cap_too_high_for_the_mesh_is_refused() {
     ))
     .unwrap();
 }
+
+#[test]
+fn a_refinement_beyond_the_stated_bounds_is_refused_before_any_work() {
+    refused(
+        parse(&MINIMAL.replace("scale = 0.03", "scale = 0.03\nrefine = 4")).map(|_| ()),
+        "mesh.refine",
+        &format!("outside [0, {MAX_REFINE}]"),
+    );
+    // liver-5k's 5174 tetrahedra refined three times would be 2.6 million.
+    let text = MINIMAL
+        .replace("builtin:liver.msh", "../meshes/liver-5k.msh")
+        .replace("scale = 0.03", "scale = 0.03\nrefine = 3");
+    refused(
+        build(&text),
+        "mesh.refine",
+        &format!("5174 tetrahedra refined 3 times would be 2649088, more than {MAX_REFINED_TETS}"),
+    );
+    // Refined once, the liver keeps its file's nodes as supports.
+    let sim = parse(&MINIMAL.replace("scale = 0.03", "scale = 0.03\nrefine = 1"))
+        .unwrap()
+        .build()
+        .unwrap();
+    assert_eq!(sim.mesh.tets.len(), 8 * 596);
+    assert_eq!(sim.fixed, [3, 39, 64]);
+}
