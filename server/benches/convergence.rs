@@ -141,8 +141,9 @@ fn frictionless() -> bool {
     std::env::args().any(|a| a == "--frictionless")
 }
 
-fn run(file: &str, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) -> Outcome {
-    let mut scene = scene(file, IntegratorKind::Implicit, 1e-6);
+fn run(mesh: &MeshCase, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) -> Outcome {
+    let mut scene = scene(&mesh.file, IntegratorKind::Implicit, 1e-6);
+    scene.mesh.refine = mesh.refine;
     scene.mechanics.rate_hz = RATE_HZ;
     scene.force_model.kind = kind;
     scene.contact.footprint = footprint;
@@ -174,7 +175,8 @@ fn run(file: &str, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) 
                 .x
                 .iter()
                 .all(|p| p.coords.iter().all(|c| c.is_finite())),
-            "{file} {}: non-finite state at tick {k}",
+            "{} {}: non-finite state at tick {k}",
+            mesh.label,
             gesture.label()
         );
     }
@@ -213,6 +215,21 @@ fn summarise(what: &str, per_mesh: &[(&str, f64)]) {
         "{what}: 5k/20k/80k within {:.1}% of their mean {mean:.3} N (goal ±10%); SOFA {sofa} (goal ±25%)",
         100.0 * deviation(&refined),
     );
+    // SOFA's liver against itself refined: the same surface, so only the mesh differs.
+    let value = |label: &str| per_mesh.iter().find(|(l, _)| *l == label).map(|&(_, v)| v);
+    if let (Some(coarse), Some(r1), Some(r2)) = (
+        value("sofa-liver"),
+        value("sofa-liver-r1"),
+        value("sofa-liver-r2"),
+    ) {
+        let pct = |v: f64| 100.0 * (v - r2) / r2;
+        println!(
+            "{what}: SOFA's liver {:+.1}%, refined once {:+.1}%, against refined twice {r2:.3} N; refined twice against the 5k/20k/80k mean {:+.1}%",
+            pct(coarse),
+            pct(r1),
+            100.0 * (r2 - mean) / mean,
+        );
+    }
 }
 
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
@@ -377,7 +394,14 @@ fn main() {
 
 fn gestures() {
     let with_300k = std::env::args().any(|a| a == "--with-300k");
-    let mut labels = vec!["sofa-liver", "liver-5k", "liver-20k", "liver-80k"];
+    let mut labels = vec![
+        "sofa-liver",
+        "sofa-liver-r1",
+        "sofa-liver-r2",
+        "liver-5k",
+        "liver-20k",
+        "liver-80k",
+    ];
     if with_300k {
         labels.push("liver-300k");
     }
@@ -414,7 +438,7 @@ fn gestures() {
             let mut reaction = Vec::new();
             let mut rendered = Vec::new();
             for m in &meshes {
-                let o = run(&m.file, (kind, footprint), gesture);
+                let o = run(m, (kind, footprint), gesture);
                 println!(
                     "| {} | {label} | {:.3} | {:.3} | {:.1} | {} | {:.2} |",
                     m.label,

@@ -18,7 +18,8 @@
 //!
 //! `cargo bench -p laparo-tests --bench force_error` (`-- --mesh FILE` runs the probe
 //! on another liver with the default scene's settings, e.g.
-//! `server/meshes/liver-5k.msh`; `-- --trace RATE` prints the 1 kHz trace at one rate)
+//! `server/meshes/liver-5k.msh`; `-- --refine K` refines the liver K times when
+//! loaded, `mesh.refine`; `-- --trace RATE` prints the 1 kHz trace at one rate)
 
 use std::time::{Duration, Instant};
 
@@ -60,11 +61,30 @@ fn mesh_file() -> Option<&'static str> {
     .as_deref()
 }
 
+/// `--refine K`: how many times the liver is refined when loaded (`mesh.refine`),
+/// 0 unless given. A missing or unreadable count ends the run with a message.
+fn refine() -> u32 {
+    static REFINE: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *REFINE.get_or_init(|| {
+        let args: Vec<String> = std::env::args().collect();
+        let Some(k) = args.iter().position(|a| a == "--refine") else {
+            return 0;
+        };
+        args.get(k + 1)
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| {
+                eprintln!("--refine takes a count, 0 to 3");
+                std::process::exit(2);
+            })
+    })
+}
+
 fn settled(rate_hz: f64, kind: ForceModelKind) -> Simulation {
     let mut scene = Scene::default_scene();
     if let Some(file) = mesh_file() {
         scene.mesh.file = file.to_string();
     }
+    scene.mesh.refine = refine();
     scene.mechanics.rate_hz = rate_hz;
     scene.force_model.kind = kind;
     let mut sim = scene
@@ -439,8 +459,14 @@ fn main() {
     let rms_truth =
         (truth.iter().map(|f| f.norm_squared()).sum::<f64>() / truth.len() as f64).sqrt();
     println!(
-        "Probe of {}: {} mm past the surface, {} mm slide, axis through the trocar, {} s; reference reaction at 1 kHz: peak {:.3} N, RMS {:.3} N",
+        "Probe of {}{}: {} mm past the surface, {} mm slide, axis through the trocar, {} s; reference reaction at 1 kHz: peak {:.3} N, RMS {:.3} N",
         mesh_file().unwrap_or("the default liver"),
+        match refine() {
+            0 => String::new(),
+            1 => " refined once".to_string(),
+            2 => " refined twice".to_string(),
+            k => format!(" refined {k} times"),
+        },
         DEPTH * 1e3,
         SLIDE * 1e3,
         PROBE_SECONDS,

@@ -48,6 +48,15 @@
 //! - the shaft pressed 10 mm: within ±6.2%, where the reactions spread ±12.1%; SOFA's
 //!   liver, whose five held vertices make a strip 2.5 r wide, lies 29% below.
 //!
+//! Most of that gap is the coarse liver's shape, not its mesh: SOFA's `liver.msh` is
+//! not the surface the refined livers are meshed from. Refined once and twice
+//! (`mesh.refine`, the same surface), it gives 0.216 and 0.225 N for the tip at
+//! 8 mm, 0.393 and 0.380 N at 15 mm, and 0.716 and 0.706 N for the shaft: the coarse
+//! liver lies 13% below, 2% above and 8% below its twice-refined self, where its
+//! own reactions lie 118%, 230% and 26% above it. The twice-refined SOFA liver lies
+//! 16%, 18% and 23% below the three refined livers' mean. `tests/contact_refined.rs`
+//! checks the coarse liver against it refined once.
+//!
 //! On a block (`server/tests/contact_footprint.rs`) meshed at twice the radius, an
 //! 8 mm tip press gives within 5% of the force on a block graded to 1 mm, where its
 //! own reaction is 2.7 times that; a 10 mm shaft press gives 20% above the graded

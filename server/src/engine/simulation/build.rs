@@ -13,7 +13,13 @@ use crate::engine::scene::{Scene, SceneError};
 impl Scene {
     /// Loads the mesh and builds the simulation the scene declares.
     pub fn build(&self) -> Result<Simulation, SceneError> {
-        self.build_on(mesh::load(self)?)
+        self.build_on(self.load_mesh()?)
+    }
+
+    /// The scene's mesh as [`build`](Self::build) loads it: read, refined,
+    /// renumbered, scaled and centred, in metres.
+    pub fn load_mesh(&self) -> Result<TetMesh, SceneError> {
+        mesh::load(self)
     }
 
     /// Builds the simulation on an already loaded mesh (in metres).
