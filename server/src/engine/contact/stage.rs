@@ -289,14 +289,46 @@ impl ContactStage {
         // triangle swung back over a pressed tip has no vertex inside the instrument;
         // only the tip press sees it), nor what the settling moved inside any.
         if instruments.len() > 1 || settled {
-            for _ in 0..FINAL_ROUNDS {
+            // Whether anything but an instrument's own steps may have moved tissue
+            // since its broad phase was last refitted.
+            let moved_by_others =
+                settled || instruments.iter().filter(|i| i.current.is_some()).count() > 1;
+            for round in 0..FINAL_ROUNDS {
                 let mut moved = false;
                 for (k, ins) in instruments.iter_mut().enumerate() {
                     let Some(pose) = ins.current else { continue };
                     self.s.mark = self.s.mark.wrapping_add(1);
                     self.s.moved.clear();
                     let length = ins.active_length();
-                    self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
+                    if round == 0 && settled {
+                        // The settling moves free tissue with the jumps, by up to
+                        // about a radius (`SETTLE_REACH`), past an instrument as
+                        // readily as away from it. Its moves are a sub-move with the
+                        // instrument still, from where it started (`rel_start`, see
+                        // `settle_jumps`): candidates over that sweep, and edges that
+                        // crossed the axis on the way stopped where they did not
+                        // (§2.3–2.4), as for any motion.
+                        self.gather(k, surface, &state.x, &pose, ins.radius, length, true);
+                        if ins.shaft_contact {
+                            ins.report.colliding_edges += stop_colliding_edges(
+                                &mut self.s,
+                                &surface.edges,
+                                &pose,
+                                length,
+                                &mut state.x,
+                            );
+                        }
+                    } else {
+                        // The settling and the other instruments may have moved
+                        // tissue further than the query's margin from where this
+                        // instrument's broad phase last saw it: its boxes are
+                        // refitted to where the tissue is now (only the triangles
+                        // whose vertices left their box).
+                        if moved_by_others {
+                            self.broadphase[k].update(surface, &state.x, &state.x);
+                        }
+                        self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
+                    }
                     self.press(ins, surface, &pose, &pose, &mut state.x);
                     push_out(
                         &mut self.s,
@@ -341,7 +373,9 @@ impl ContactStage {
 
     /// Settles the free tissue around the held vertices the contact steps jumped this
     /// tick (see `settle`), when the largest jump exceeds [`SETTLE_JUMP`] of the
-    /// smallest radius, unless the scene turns it off. Returns whether it did.
+    /// smallest radius, unless the scene turns it off, each jump scaled down so that
+    /// the largest is at most [`SETTLE_REACH`] radii. Returns whether it did, and
+    /// then leaves in `rel_start` the surface as the settling found it.
     fn settle_jumps(
         &mut self,
         instruments: &[Instrument],
@@ -377,13 +411,25 @@ impl ContactStage {
             }
             return false;
         }
+        if largest > SETTLE_REACH * radius {
+            let scale = SETTLE_REACH * radius / largest;
+            for &v in &self.jumped {
+                settle.jump[v as usize] *= scale;
+            }
+        }
+        // Where the settling starts from: its moves are motion, which the final
+        // rounds analyse as such.
+        for &v in &surface.vertices {
+            self.s.rel_start[v as usize] = state.x[v as usize];
+        }
         settle.settle(tangent, imposed.mask(), &self.jumped, &mut state.x);
         true
     }
 
     /// Candidate triangles, edges and vertices for instrument `k`. With `refit`, the
     /// broad phase is refitted to the tick's motion in the instrument's frame; without,
-    /// it is queried as it is with a margin of one radius for the pushes since.
+    /// it is queried as it is (the caller refits it if the tissue may have moved since)
+    /// with a margin of one radius for the pushes since.
     #[allow(clippy::too_many_arguments)]
     fn gather(
         &mut self,
@@ -635,6 +681,16 @@ impl ContactStage {
 /// The largest jump of a held vertex, as a fraction of the radius, below which the
 /// tissue is not settled around the jumps.
 const SETTLE_JUMP: f64 = 1e-3;
+
+/// The largest jump the tissue is settled around, as a fraction of the smallest
+/// radius; larger jumps are settled as if scaled down to it. The settling is a
+/// linear static correction for the dimple of a first contact, a jump of a
+/// millimetre or two. Around the jumps of a whole-liver sweep in one tick, 10 cm, it
+/// carried the free tissue beside the swept strip 13 mm sideways across the shaft's
+/// path, so that the strip's two sides crossed over the shaft (liver-5k, SOFA's
+/// liver refined once; `tests/contact_hard_cases.rs`). A jump larger than the
+/// instrument is a gross move, which the next elastic steps carry the tissue through.
+const SETTLE_REACH: f64 = 1.0;
 
 /// The pull-away a held vertex withstands, as a fraction of the mean force on its
 /// instrument's held vertices. Without it, vertices on the flanks of a shaft pushed
