@@ -1,6 +1,8 @@
 //! Face contact: no point of a surface triangle — corner, side or interior — inside an
 //! instrument after any tick, on a coarse mesh whose triangles are larger than the
-//! instrument (SOFA's liver, 11 mm edges for a 5 mm shaft) and a finer one (liver-5k).
+//! instrument (SOFA's liver, 11 mm edges for a 5 mm shaft), a finer one (liver-5k), and
+//! SOFA's liver refined once (`mesh.refine`: the same facets, each split into four
+//! coplanar triangles).
 //!
 //! Every tick is checked by `common::contact::check_invariants`, which samples every
 //! triangle near the instrument on a 0.5 mm grid and measures each sample's distance
@@ -19,13 +21,17 @@ use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Vector3};
 use proptest::prelude::*;
 
-/// The default scene with one instrument on SOFA's liver (`m = 0`) or liver-5k
-/// (`m = 1`), and the middle of its free front (+z) face.
+/// The default scene with one instrument on SOFA's liver (`m = 0`), liver-5k
+/// (`m = 1`) or SOFA's liver refined once (`m = 2`), and the middle of its free front
+/// (+z) face.
 fn scene(m: usize) -> (Simulation, Point3<f64>) {
     let mut scene = Scene::default_scene();
     scene.instruments.truncate(1);
     if m == 1 {
         scene.mesh.file = common::LIVER_5K.to_string();
+    }
+    if m == 2 {
+        scene.mesh.refine = 1;
     }
     let sim = scene.build().unwrap();
     let front = common::contact::front_point(&sim);
@@ -120,7 +126,7 @@ proptest! {
     /// to 60°: the first tick clears it, the hold keeps it clear, and it withdraws.
     #[test]
     fn a_first_pose_inside_the_liver_is_cleared_at_once(
-        m in 0usize..2,
+        m in 0usize..3,
         o in [-0.02..0.02f64, -0.01..0.01f64, -0.02..0.0f64],
         a in -1.05..1.05f64,
         b in -0.3..0.3f64,
@@ -143,7 +149,7 @@ proptest! {
     /// the shaft at any tilt up to 60°.
     #[test]
     fn fast_sweeps_keep_faces_out(
-        m in 0usize..2,
+        m in 0usize..3,
         from in [-0.025..0.025f64, -0.012..0.012f64],
         to in [-0.025..0.025f64, -0.012..0.012f64],
         depth in 0.0..0.015f64,
@@ -171,7 +177,7 @@ proptest! {
     /// the shaft sweeps through the tissue around the tip.
     #[test]
     fn quarter_turns_in_one_tick_keep_faces_out(
-        m in 0usize..2,
+        m in 0usize..3,
         o in [-0.02..0.02f64, -0.01..0.01f64],
         depth in 0.0..0.01f64,
         in_x in any::<bool>(),
