@@ -5,13 +5,13 @@
 //! four corner children, `[0, m01, m02, m03]` and its like at `1`, `2`, `3`, each
 //! similar to the parent at half its size; what is left is the octahedron of the six
 //! midpoints, cut along one of its three diagonals `m01–m23`, `m02–m13`, `m03–m12`
-//! into four tetrahedra around it. The shortest diagonal is taken: of the three cuts
-//! it makes the best-shaped children, and the corner children are similar to their
-//! parent, so shapes do not decay as the refinement repeats (the tests check the
-//! worst shape after a second refinement against the first). The octahedron lies inside its
-//! parent, so each tetrahedron's choice is its own and the children of neighbours
-//! still share whole faces: each face of a parent is split by its three edge
-//! midpoints into the same four triangles from either side.
+//! into four tetrahedra around it. The shortest diagonal is taken, the usual choice
+//! for well-shaped children; the corner children are similar to their parent. The
+//! tests check that no child is worse than the worst parent, through two
+//! refinements of SOFA's liver. The octahedron lies inside its parent, so each
+//! tetrahedron's choice is its own and the children of neighbours still share whole
+//! faces: each face of a parent is split by its three edge midpoints into the same
+//! four triangles from either side.
 //!
 //! Every new point lies on a parent's edge, so the refined body has the parent's
 //! surface exactly (each surface triangle split into four coplanar ones), its volume,
