@@ -219,11 +219,12 @@ fn press(sim: &mut Simulation, presses: &mut [Press], label: &str, run: &mut Run
     run.unconverged += all.unconverged;
 }
 
-/// The default scene on `file`, built and settled under gravity for 1 s with the
+/// The default scene on `mesh`, built and settled under gravity for 1 s with the
 /// instruments out of the body.
-fn settled(file: &str) -> Simulation {
+fn settled(mesh: &MeshCase) -> Simulation {
     let mut scene = Scene::default_scene();
-    scene.mesh.file = file.to_string();
+    scene.mesh.file = mesh.file.clone();
+    scene.mesh.refine = mesh.refine;
     if std::env::var_os("LAPARO_CONTACT_SETTLE").is_some_and(|v| v == "0") {
         scene.contact.settle = false;
     }
@@ -242,7 +243,7 @@ fn settled(file: &str) -> Simulation {
 
 /// Repeats `gesture` on fresh settled simulations for about `BUDGET` of wall time.
 fn repeat(
-    file: &str,
+    mesh: &MeshCase,
     label: &str,
     gesture: impl Fn(&Simulation) -> Vec<Press>,
 ) -> (Run, Simulation, usize) {
@@ -250,7 +251,7 @@ fn repeat(
     let start = Instant::now();
     let mut repeats = 0;
     loop {
-        let mut sim = settled(file);
+        let mut sim = settled(mesh);
         let mut presses = gesture(&sim);
         press(&mut sim, &mut presses, label, &mut run);
         repeats += 1;
@@ -336,7 +337,7 @@ fn main() {
             ("shaft, fast", fast_shaft_gesture),
         ] {
             let label = format!("{} {name}", case.label);
-            let (mut run, sim, repeats) = repeat(&case.file, &label, gesture);
+            let (mut run, sim, repeats) = repeat(&case, &label, gesture);
             let contact = ms(&mut run.contact);
             let elastic = ms(&mut run.elastic);
             let (carry, resolve) = (ms(&mut run.carry), ms(&mut run.resolve));
@@ -375,7 +376,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|");
     for case in meshes(&["sofa-liver", "liver-20k"]) {
         let label = format!("{} two tips", case.label);
-        let (mut run, _, repeats) = repeat(&case.file, &label, two_tips);
+        let (mut run, _, repeats) = repeat(&case, &label, two_tips);
         let whole = ms(&mut run.whole);
         let contact = ms(&mut run.contact);
         if run.unconverged > 0 {

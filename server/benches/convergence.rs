@@ -142,8 +142,7 @@ fn frictionless() -> bool {
 }
 
 fn run(mesh: &MeshCase, (kind, footprint): (ForceModelKind, bool), gesture: Gesture) -> Outcome {
-    let mut scene = scene(&mesh.file, IntegratorKind::Implicit, 1e-6);
-    scene.mesh.refine = mesh.refine;
+    let mut scene = scene(mesh, IntegratorKind::Implicit, 1e-6);
     scene.mechanics.rate_hz = RATE_HZ;
     scene.force_model.kind = kind;
     scene.contact.footprint = footprint;

@@ -96,7 +96,7 @@ fn main() {
         // that follows it.
         let mut exact = None;
         for (model, preconditioner, turn) in runs {
-            let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
+            let mut scene = scene(&case, IntegratorKind::Implicit, 1e-4);
             scene.material.model = model;
             scene.mechanics.preconditioner = preconditioner;
             scene.mechanics.threads = threads;

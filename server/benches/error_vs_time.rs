@@ -29,12 +29,12 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for case in meshes(&["sofa-liver", "liver-20k"]) {
         for model in [Formulation::Linear, Formulation::Corotational] {
-            let scene = |file: &str, integrator, tol| -> Scene {
-                let mut s = scene(file, integrator, tol);
+            let scene = |case: &MeshCase, integrator, tol| -> Scene {
+                let mut s = scene(case, integrator, tol);
                 s.material.model = model;
                 s
             };
-            let mut reference = build(&scene(&case.file, IntegratorKind::Static, 1e-12));
+            let mut reference = build(&scene(&case, IntegratorKind::Static, 1e-12));
             let r = reference.solve_static();
             assert!(r.converged, "static reference: {r:?}");
             let scale = reference.max_displacement();
@@ -44,7 +44,7 @@ fn main() {
                     .chain([1e-2, 1e-3, 1e-4, 1e-6, 1e-8].map(|t| (IntegratorKind::Implicit, t)))
                     .collect();
             for (integrator, tol) in runs {
-                let scene = scene(&case.file, integrator, tol);
+                let scene = scene(&case, integrator, tol);
                 let (mut walls, mut error, mut cg) = (Vec::new(), 0.0, 0u64);
                 for _ in 0..repeats {
                     let mut sim = build(&scene);

@@ -75,7 +75,7 @@ fn main() {
             }
         }
         for (integrator, model, preconditioner) in runs {
-            let mut scene = scene(&case.file, integrator, 1e-4);
+            let mut scene = scene(&case, integrator, 1e-4);
             if let Some(model) = model {
                 scene.material.model = model;
             }

@@ -80,7 +80,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let labels = requested_labels(&["sofa-liver", "liver-5k", "liver-20k", "liver-80k"]);
     for case in meshes(&labels) {
-        let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
+        let mut scene = scene(&case, IntegratorKind::Implicit, 1e-4);
         scene.material.model = Formulation::Linear;
         let sim = build(&scene);
         let k = &sim.model.stiffness;
@@ -191,7 +191,7 @@ fn main() {
                     .into_iter()
                     .enumerate()
                 {
-                    let mut scene = scene(&case.file, IntegratorKind::Implicit, 1e-4);
+                    let mut scene = scene(&case, IntegratorKind::Implicit, 1e-4);
                     scene.mechanics.preconditioner = preconditioner;
                     scene.mechanics.stiffness = storage;
                     scene.mechanics.threads = threads;

@@ -80,10 +80,12 @@ pub fn meshes(labels: &[&'static str]) -> Vec<MeshCase> {
     out
 }
 
-/// The default scene on another mesh, with another integrator and CG tolerance.
-pub fn scene(mesh_file: &str, integrator: IntegratorKind, cg_tolerance: f64) -> Scene {
+/// The default scene on another mesh (its file and refinement), with another
+/// integrator and CG tolerance.
+pub fn scene(mesh: &MeshCase, integrator: IntegratorKind, cg_tolerance: f64) -> Scene {
     let mut scene = Scene::default_scene();
-    scene.mesh.file = mesh_file.to_string();
+    scene.mesh.file = mesh.file.clone();
+    scene.mesh.refine = mesh.refine;
     scene.mechanics.integrator = integrator;
     scene.mechanics.cg_tolerance = cg_tolerance;
     scene.mechanics.cg_max_iterations = 20_000;
