@@ -60,7 +60,7 @@
 
 mod common;
 
-/// The contact tests' gestures; the bench uses `front_point`.
+/// The contact tests' gestures; the bench uses `front_press`.
 #[path = "../tests/common/contact.rs"]
 #[allow(dead_code)]
 mod gestures;
@@ -71,14 +71,14 @@ mod gestures;
 mod indentation;
 
 use common::*;
-use gestures::front_point;
+use gestures::front_press;
 use indentation::*;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::mesh::TetMesh;
 use laparo_server::engine::simulation::Simulation;
-use nalgebra::{Point3, Unit, Vector3};
+use nalgebra::Vector3;
 
 const RATE_HZ: f64 = 60.0;
 const SETTLE_TICKS: usize = 60;
@@ -114,17 +114,7 @@ impl Gesture {
 
     /// The final pose on `sim` (settled), for an instrument of radius `r`.
     fn pose(self, sim: &Simulation, r: f64) -> InstrumentPose {
-        let f = front_point(sim);
-        match self {
-            Gesture::Tip(d) => InstrumentPose::new(
-                Point3::new(f.x, f.y, f.z - d + r),
-                Unit::new_normalize(Vector3::z()),
-            ),
-            Gesture::Shaft(d) => InstrumentPose::new(
-                Point3::new(f.x + 0.06, f.y, f.z - d + r),
-                Unit::new_normalize(-Vector3::x()),
-            ),
-        }
+        front_press(sim, matches!(self, Gesture::Shaft(_)), self.depth(), r)
     }
 }
 
@@ -204,18 +194,15 @@ fn summarise(what: &str, per_mesh: &[(&str, f64)]) {
         return;
     }
     let mean = refined.iter().sum::<f64>() / refined.len() as f64;
-    let sofa = per_mesh
-        .iter()
-        .find(|(l, _)| *l == "sofa-liver")
-        .map_or("not run".to_string(), |&(_, s)| {
-            format!("{:+.1}%", 100.0 * (s - mean) / mean)
-        });
+    let value = |label: &str| per_mesh.iter().find(|(l, _)| *l == label).map(|&(_, v)| v);
+    let sofa = value("sofa-liver").map_or("not run".to_string(), |s| {
+        format!("{:+.1}%", 100.0 * (s - mean) / mean)
+    });
     println!(
         "{what}: 5k/20k/80k within {:.1}% of their mean {mean:.3} N (goal ±10%); SOFA {sofa} (goal ±25%)",
         100.0 * deviation(&refined),
     );
     // SOFA's liver against itself refined: the same surface, so only the mesh differs.
-    let value = |label: &str| per_mesh.iter().find(|(l, _)| *l == label).map(|&(_, v)| v);
     if let (Some(coarse), Some(r1), Some(r2)) = (
         value("sofa-liver"),
         value("sofa-liver-r1"),

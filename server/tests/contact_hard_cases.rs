@@ -117,7 +117,7 @@ fn sweeping_through_the_whole_liver_in_one_tick_does_not_tunnel() {
     let mut refined = Scene::default_scene();
     refined.mesh.refine = 1;
     let mut finer = Scene::default_scene();
-    finer.mesh.file = concat!(env!("CARGO_MANIFEST_DIR"), "/meshes/liver-5k.msh").to_string();
+    finer.mesh.file = common::LIVER_5K.to_string();
     for scene in [Scene::default_scene(), refined, finer] {
         sweep_through(scene);
     }

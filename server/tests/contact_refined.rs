@@ -10,10 +10,10 @@
 
 mod common;
 
-use common::contact::front_point;
+use common::contact::front_press;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::scene::Scene;
-use nalgebra::{Point3, Unit, Vector3};
+use nalgebra::Vector3;
 
 #[derive(Clone, Copy, Debug)]
 enum Press {
@@ -34,18 +34,11 @@ fn press(refine: u32, press: Press, footprint: bool) -> f64 {
         sim.tick();
     }
     sim.set_pose(1, None);
-    let f = front_point(&sim);
-    let r = sim.instruments[0].radius;
-    let end = match press {
-        Press::Tip => InstrumentPose::new(
-            Point3::new(f.x, f.y, f.z - 0.008 + r),
-            Unit::new_normalize(Vector3::z()),
-        ),
-        Press::Shaft => InstrumentPose::new(
-            Point3::new(f.x + 0.06, f.y, f.z - 0.010 + r),
-            Unit::new_normalize(-Vector3::x()),
-        ),
+    let (shaft, depth) = match press {
+        Press::Tip => (false, 0.008),
+        Press::Shaft => (true, 0.010),
     };
+    let end = front_press(&sim, shaft, depth, sim.instruments[0].radius);
     let start = InstrumentPose::new(end.tip + Vector3::z() * 0.02, end.axis);
     for k in 1..=90 {
         sim.set_pose(0, Some(start.lerp(&end, (k as f64 / 30.0).min(1.0))));

@@ -154,6 +154,26 @@ pub fn front_point(sim: &Simulation) -> Point3<f64> {
         .expect("the default liver has a front face")
 }
 
+/// The end of a press of the default liver's free front, past [`front_point`] by
+/// `depth` (m), for an instrument of radius `r`: with the tip, the axis along +z
+/// through the front point and the instrument's foremost point `P − r Z` `depth` past
+/// it; with the shaft, the axis along −x level with the front point, the tip 6 cm
+/// beyond it in +x and the shaft's underside `depth` past it.
+pub fn front_press(sim: &Simulation, shaft: bool, depth: f64, r: f64) -> InstrumentPose {
+    let f = front_point(sim);
+    if shaft {
+        InstrumentPose::new(
+            Point3::new(f.x + 0.06, f.y, f.z - depth + r),
+            Unit::new_normalize(-Vector3::x()),
+        )
+    } else {
+        InstrumentPose::new(
+            Point3::new(f.x, f.y, f.z - depth + r),
+            Unit::new_normalize(Vector3::z()),
+        )
+    }
+}
+
 /// The index of the vertex [`front_point`] returns.
 pub fn front_vertex(sim: &Simulation) -> u32 {
     let p = front_point(sim);
