@@ -38,20 +38,29 @@ const DEPTH: f64 = 0.008;
 const SLIDE: f64 = 0.02;
 const REPEATS: usize = 5;
 
+/// The value given after `flag` on the command line, `None` without the flag. A flag
+/// without a value, or with one that does not read as a `T`, ends the run saying
+/// what it `takes`.
+fn argument<T: std::str::FromStr>(flag: &str, takes: &str) -> Option<T> {
+    let args: Vec<String> = std::env::args().collect();
+    let k = args.iter().position(|a| a == flag)?;
+    let value = args.get(k + 1).and_then(|v| v.parse().ok());
+    if value.is_none() {
+        eprintln!("{flag} takes {takes}");
+        std::process::exit(2);
+    }
+    value
+}
+
 /// The liver the probe runs on: `--mesh FILE` (a relative path from the workspace's
 /// root, where the README's commands run), else the default scene's. A missing
 /// argument or file ends the run with a message.
 fn mesh_file() -> Option<&'static str> {
     static MESH: std::sync::OnceLock<Option<String>> = std::sync::OnceLock::new();
     MESH.get_or_init(|| {
-        let args: Vec<String> = std::env::args().collect();
-        let k = args.iter().position(|a| a == "--mesh")?;
-        let Some(file) = args.get(k + 1) else {
-            eprintln!("--mesh takes a Gmsh file");
-            std::process::exit(2);
-        };
+        let file: String = argument("--mesh", "a Gmsh file")?;
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-        let path = root.join(file);
+        let path = root.join(&file);
         if !path.is_file() {
             eprintln!("--mesh {file}: no such file ({})", path.display());
             std::process::exit(2);
@@ -65,18 +74,7 @@ fn mesh_file() -> Option<&'static str> {
 /// 0 unless given. A missing or unreadable count ends the run with a message.
 fn refine() -> u32 {
     static REFINE: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
-    *REFINE.get_or_init(|| {
-        let args: Vec<String> = std::env::args().collect();
-        let Some(k) = args.iter().position(|a| a == "--refine") else {
-            return 0;
-        };
-        args.get(k + 1)
-            .and_then(|n| n.parse().ok())
-            .unwrap_or_else(|| {
-                eprintln!("--refine takes a count, 0 to 3");
-                std::process::exit(2);
-            })
-    })
+    *REFINE.get_or_init(|| argument("--refine", "a count, 0 to 3").unwrap_or(0))
 }
 
 fn settled(rate_hz: f64, kind: ForceModelKind) -> Simulation {
@@ -446,12 +444,7 @@ fn main() {
     }
     let probe = front_probe(&settled(60.0, ForceModelKind::Geometric), DEPTH, SLIDE);
     let (truth, let_go) = reference(&probe);
-    let args: Vec<String> = std::env::args().collect();
-    if let Some(k) = args.iter().position(|a| a == "--trace") {
-        let rate = args
-            .get(k + 1)
-            .and_then(|r| r.parse().ok())
-            .expect("--trace takes a mechanics rate in Hz");
+    if let Some(rate) = argument("--trace", "a mechanics rate in Hz") {
         trace(&probe, rate, &truth);
         return;
     }
