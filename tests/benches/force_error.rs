@@ -248,38 +248,83 @@ struct LetGo {
     /// How near the tip `P` the nearest of their surface triangles came after the
     /// tick, in radii.
     nearest: f64,
+    /// How long before the tick the tip had stopped touching all of their triangles
+    /// (each triangle's nearest approach to `P` beyond [`APART`]·r), s; `None` when
+    /// one of them still touched it at the tick before.
+    apart_for: Option<f64>,
+    /// `|T| / N` of the reaction of the one that carried the most, at the tick
+    /// before: its part `T` across the instrument's surface against its push `N`
+    /// along the surface's inward normal (the axis on the tip's end and level with
+    /// it, else the radial direction toward the axis). At the scene's friction
+    /// coefficient μ it was sliding on the friction cone.
+    tangential_over_normal: f64,
+}
+
+/// A triangle's nearest approach to the tip `P` beyond which the tip touches it no
+/// more, in radii: the push-out leaves the surface at `r (1 + 10⁻⁴)`, so a
+/// thousandth of a radius is clear of it.
+const APART: f64 = 1.001;
+
+/// A vertex instrument 0 held at the last tick.
+#[derive(Clone, Copy)]
+struct WatchedVertex {
+    v: u32,
+    /// Its reaction, N.
+    reaction: Vector3<f64>,
+    /// Since when, s, none of its triangles has touched the tip (see [`APART`]).
+    apart_since: Option<f64>,
+    /// `|T| / N` of its reaction (see [`LetGo::tangential_over_normal`]).
+    tangential_over_normal: f64,
 }
 
 /// Follows a run tick by tick for [`LetGo`] steps.
 #[derive(Default)]
 struct LetGoWatch {
-    /// The vertices instrument 0 held at the last tick, with their reactions.
-    held: Vec<(u32, Vector3<f64>)>,
+    held: Vec<WatchedVertex>,
     before: Vector3<f64>,
     steps: Vec<LetGo>,
+}
+
+/// The nearest approach to the tip `P` of the surface triangles around vertex `v`,
+/// m (infinite for a vertex off the surface).
+fn nearest_approach(sim: &Simulation, v: u32, tip: &Point3<f64>) -> f64 {
+    let surface = &sim.mesh.surface;
+    surface
+        .slot(v)
+        .map(|slot| surface.triangles_around(slot))
+        .unwrap_or_default()
+        .iter()
+        .map(|&k| {
+            let corners = surface.triangles[k as usize].map(|w| sim.state.x[w as usize]);
+            (closest_point_triangle(tip, &corners).point - tip).norm()
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 impl LetGoWatch {
     fn after_tick(&mut self, sim: &Simulation, t: f64) {
         let ins = &sim.instruments[0];
-        let gone: Vec<(u32, Vector3<f64>)> = self
+        let gone: Vec<WatchedVertex> = self
             .held
             .iter()
-            .filter(|(v, _)| !ins.held.contains(v))
+            .filter(|w| !ins.held.contains(&w.v))
             .copied()
             .collect();
-        let carried: Vector3<f64> = gone.iter().map(|(_, f)| f).sum();
+        let carried: Vector3<f64> = gone.iter().map(|w| w.reaction).sum();
         if let Some(pose) = ins.current.filter(|_| carried.norm() > 0.0) {
-            let surface = &sim.mesh.surface;
             let nearest = gone
                 .iter()
-                .filter_map(|&(v, _)| surface.slot(v))
-                .flat_map(|slot| surface.triangles_around(slot))
-                .map(|&k| {
-                    let corners = surface.triangles[k as usize].map(|w| sim.state.x[w as usize]);
-                    (closest_point_triangle(&pose.tip, &corners).point - pose.tip).norm()
-                })
+                .map(|w| nearest_approach(sim, w.v, &pose.tip))
                 .fold(f64::INFINITY, f64::min);
+            let apart_for = gone
+                .iter()
+                .map(|w| w.apart_since)
+                .try_fold(f64::INFINITY, |a, s| s.map(|s| a.min(s)))
+                .map(|since| t - since);
+            let heaviest = gone
+                .iter()
+                .max_by(|a, b| a.reaction.norm().total_cmp(&b.reaction.norm()))
+                .expect("a let-go that carried a force let go of a vertex");
             self.steps.push(LetGo {
                 t,
                 vertices: gone.len(),
@@ -287,15 +332,35 @@ impl LetGoWatch {
                 before: self.before.norm(),
                 after: ins.report.reaction.norm(),
                 nearest: nearest / ins.radius,
+                apart_for,
+                tangential_over_normal: heaviest.tangential_over_normal,
             });
         }
-        self.held.clear();
-        self.held.extend(
-            ins.held
-                .iter()
-                .copied()
-                .zip(ins.report.held_reactions.iter().copied()),
-        );
+        let Some(pose) = ins.current else {
+            self.held.clear();
+            self.before = ins.report.reaction;
+            return;
+        };
+        let last = std::mem::take(&mut self.held);
+        let z = pose.axis.into_inner();
+        for (&v, &reaction) in ins.held.iter().zip(&ins.report.held_reactions) {
+            let apart = nearest_approach(sim, v, &pose.tip) > APART * ins.radius;
+            let before = last.iter().find(|w| w.v == v).and_then(|w| w.apart_since);
+            // The surface's inward normal at the vertex (the tissue pushes along it).
+            let d = sim.state.x[v as usize] - pose.tip;
+            let inward = if d.dot(&z) <= ins.radius {
+                z
+            } else {
+                (d.dot(&z) * z - d).try_normalize(0.0).unwrap_or(z)
+            };
+            let normal = reaction.dot(&inward);
+            self.held.push(WatchedVertex {
+                v,
+                reaction,
+                apart_since: apart.then(|| before.unwrap_or(t)),
+                tangential_over_normal: (reaction - inward * normal).norm() / normal.max(1e-12),
+            });
+        }
         self.before = ins.report.reaction;
     }
 }
@@ -304,25 +369,30 @@ impl LetGoWatch {
 /// `steps` of the 1 kHz engine along the probe at which the vertices it let go had
 /// carried, at the tick before, reactions summing to more than a tenth of the RMS
 /// force. For each: when, how many vertices, the reaction they carried, the
-/// instrument's reaction before and after, and how near the tip `P` the nearest of
+/// instrument's reaction before and after, how near the tip `P` the nearest of
 /// their surface triangles came after the tick, in radii (the contact stage keeps a
 /// vertex laid on the tip plane beside the shaft while one of its triangles is within
-/// 1.05 r of `P`). Such a step happens within one tick of the engine; a force loop
-/// fed at a lower mechanics rate learns of it only with the next model, so that a
-/// step `F` rendered `L` late costs `F √(L / T)` of RMS error over the probe's `T`,
+/// 1.05 r of `P`), how long before it the tip had stopped touching every one of
+/// those triangles, and whether the heaviest of them was sliding (`|T| / N` at the
+/// friction coefficient). Such a step happens within one tick of the engine; a force
+/// loop fed at a lower mechanics rate learns of it only with the next model, so that
+/// a step `F` rendered `L` late costs `F √(L / T)` of RMS error over the probe's `T`,
 /// whatever the force model.
 fn let_go_while_pushing(steps: &[LetGo], rms_truth: f64) {
     println!(
         "\nThe reference's let-go steps: ticks of the 1 kHz engine at which the vertices let go had carried more than a tenth of the RMS force"
     );
     println!(
-        "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) |"
+        "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) | the tip touched none of them for (ms) | heaviest one's tangential / normal reaction |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for g in steps.iter().filter(|g| g.carried > 0.1 * rms_truth) {
+        let apart = g
+            .apart_for
+            .map_or_else(|| "—".to_string(), |s| format!("{:.0}", s * 1e3));
         println!(
-            "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
-            g.t, g.vertices, g.carried, g.before, g.after, g.nearest
+            "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {apart} | {:.2} |",
+            g.t, g.vertices, g.carried, g.before, g.after, g.nearest, g.tangential_over_normal
         );
     }
 }

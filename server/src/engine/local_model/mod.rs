@@ -89,7 +89,12 @@ use stiffness::{Calibration, VertexMaterial};
 /// reaction itself steps within a tick, which a model a tick old cannot foresee. On
 /// that probe the 1 kHz engine drops 0.68 N to nothing in one tick of the
 /// withdrawal, when the tissue laid on the tip plane beside the shaft has slid
-/// 1.05 r from the tip and is let go (the bench's let-go table).
+/// 1.05 r from the tip and is let go (the bench's let-go table). The vertex that
+/// carries it, three radii off the axis, slides on the friction cone (`|T| / N` =
+/// 1.01 at μ = 1) and takes its triangles off the tip: for 51 ms before the let-go
+/// the tip touches none of them, yet the vertex, held, rides with the instrument
+/// and keeps its load. What that points to is contact on the face under the tip,
+/// its load shared among the triangle's vertices as the contact point moves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ForceModelKind {
