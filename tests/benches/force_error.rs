@@ -256,8 +256,9 @@ struct LetGo {
     /// before: its part `T` across the instrument's surface against its push `N`
     /// along the surface's inward normal (the axis on the tip's end and level with
     /// it, else the radial direction toward the axis). At the scene's friction
-    /// coefficient μ it was sliding on the friction cone.
-    tangential_over_normal: f64,
+    /// coefficient μ it was sliding on the friction cone. `None` when it did not
+    /// push (`N ≤ 0`).
+    tangential_over_normal: Option<f64>,
 }
 
 /// A triangle's nearest approach to the tip `P` beyond which the tip touches it no
@@ -274,7 +275,7 @@ struct WatchedVertex {
     /// Since when, s, none of its triangles has touched the tip (see [`APART`]).
     apart_since: Option<f64>,
     /// `|T| / N` of its reaction (see [`LetGo::tangential_over_normal`]).
-    tangential_over_normal: f64,
+    tangential_over_normal: Option<f64>,
 }
 
 /// Follows a run tick by tick for [`LetGo`] steps.
@@ -358,7 +359,8 @@ impl LetGoWatch {
                 v,
                 reaction,
                 apart_since: apart.then(|| before.unwrap_or(t)),
-                tangential_over_normal: (reaction - inward * normal).norm() / normal.max(1e-12),
+                tangential_over_normal: (normal > 0.0)
+                    .then(|| (reaction - inward * normal).norm() / normal),
             });
         }
         self.before = ins.report.reaction;
@@ -383,16 +385,19 @@ fn let_go_while_pushing(steps: &[LetGo], rms_truth: f64) {
         "\nThe reference's let-go steps: ticks of the 1 kHz engine at which the vertices let go had carried more than a tenth of the RMS force"
     );
     println!(
-        "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) | the tip touched none of them for (ms) | heaviest one's tangential / normal reaction |"
+        "| t (s) | vertices let go | their reaction (N) | instrument's reaction before (N) | after (N) | their triangles' nearest approach to the tip (r) | the tip touched none of them for (ms) | heaviest one's tangential / normal reaction (— if it did not push) |"
     );
     println!("|---|---|---|---|---|---|---|---|");
     for g in steps.iter().filter(|g| g.carried > 0.1 * rms_truth) {
         let apart = g
             .apart_for
             .map_or_else(|| "—".to_string(), |s| format!("{:.0}", s * 1e3));
+        let sliding = g
+            .tangential_over_normal
+            .map_or_else(|| "—".to_string(), |r| format!("{r:.2}"));
         println!(
-            "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {apart} | {:.2} |",
-            g.t, g.vertices, g.carried, g.before, g.after, g.nearest, g.tangential_over_normal
+            "| {:.3} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {apart} | {sliding} |",
+            g.t, g.vertices, g.carried, g.before, g.after, g.nearest
         );
     }
 }
