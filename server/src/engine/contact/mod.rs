@@ -51,6 +51,7 @@ pub mod crossing;
 mod edges;
 mod faces;
 mod footprint;
+mod hold;
 pub mod instrument;
 pub mod pose;
 mod push;
