@@ -15,7 +15,9 @@
 //! `wᵢ δ / Σⱼ wⱼ²` moves the point by `Σᵢ wᵢ² δ / Σⱼ wⱼ² = δ`, and among all vertex
 //! moves that move the point by `δ` it is the one of least `Σ |Δxᵢ|²` (the minimum-norm
 //! solution of `Σ wᵢ Δxᵢ = δ`). Supports do not move: the sums run over the free
-//! vertices only, so the point still moves by `δ`. At the centroid every vertex moves
+//! vertices only, so the point still moves by `δ`, unless that would move a free
+//! vertex more than [`MAX_LEVER`] times as far: then the point is all but on the
+//! supports and the triangle is left. At the centroid every vertex moves
 //! by `δ` (a translation); at a corner only that corner moves, as the vertex push
 //! would.
 //!
@@ -43,10 +45,18 @@ use super::push::{ON_AXIS, PUSH_MARGIN};
 use super::scratch::Scratch;
 use crate::engine::mesh::Surface;
 
-/// A triangle whose barycentric weight sum over free vertices `Σ wⱼ²` is below this
-/// has its closest point on its supports (within rounding); it is not the stage's to
-/// move.
-const ALL_FIXED: f64 = 1e-12;
+/// The largest lever of the least-norm move: how far a free vertex may move per unit
+/// of the triangle point's move, `wᵢ / Σⱼ wⱼ²`. It is 1 at a free corner and at the
+/// centroid of a free triangle, 3 at the centroid of a triangle with two supports,
+/// and grows without bound as the point nears the supports: a point at `wᵢ = 10⁻⁶`
+/// from a supported side needs its one free corner moved a million times as far.
+/// An instrument whose shaft passed through the liver beside its supports and then
+/// turned drove a triangle there: each push-out pass flung its free corner by the
+/// lever times the radius, and the tissue went 6 km in one tick, with forces of
+/// meganewtons (`tests/contact_hard_cases.rs`). Beyond this lever the point is,
+/// within a tenth of the triangle, on the supports, which the tissue cannot be
+/// moved off: the triangle is left as it is, as one all on supports is.
+const MAX_LEVER: f64 = 10.0;
 
 /// Moves the candidate triangles that come within `radius` of the axis out to
 /// `r (1 + PUSH_MARGIN)` from it. Returns whether anything moved.
@@ -99,7 +109,13 @@ pub(super) fn push_faces(
         };
         let w = c.barycentric;
         let norm: f64 = (0..3).filter(|&i| free[i]).map(|i| w[i] * w[i]).sum();
-        if norm < ALL_FIXED {
+        let lever = (0..3)
+            .filter(|&i| free[i])
+            .map(|i| w[i])
+            .fold(0.0, f64::max);
+        // False as well for a point all on supports (`norm = 0`) and for NaN.
+        let movable = norm > 0.0 && lever <= MAX_LEVER * norm;
+        if !movable {
             continue;
         }
         for i in 0..3 {
