@@ -1,10 +1,14 @@
-//! A session whose simulation produced a value that is not finite stops its output.
+//! A session whose simulation produced a value that is not finite, or a surface
+//! beyond any physical place, stops its output.
 //!
 //! Scenes are range-checked so that a tick stays finite (`engine::scene::limits`); this
 //! is the last guard. Each tick, before anything is published or recorded, the frame's
 //! surface positions (f32, so a finite f64 too large for f32 counts too) and every
 //! instrument's local model and force are checked — a pass over data the frame holds
-//! anyway, no allocation. The first fault halts the simulation: the tick's frame is
+//! anyway, no allocation. A surface position beyond ±[`MAX_COORDINATE_M`] halts too:
+//! a scene's mesh is refused unless it lies within that range, so tissue found
+//! beyond it was thrown there by the simulation (a shaft forced through the liver
+//! once flung a vertex 55 km), and frames of it would mean nothing to a trainee. The first fault halts the simulation: the tick's frame is
 //! neither sent nor recorded (its contact events, which carry only the tick and its
 //! time, are already out), a `SIMULATION_HALTED` event says what and when (to the streams and
 //! the recording), `SessionInfo.simulation_error` keeps it, and the thread waits for
@@ -17,16 +21,30 @@ use std::time::{Duration, Instant};
 use laparo_proto::v1;
 
 use super::mechanics::Mechanics;
+use crate::engine::scene::limits::MAX_COORDINATE_M;
 
 /// How often a halted session looks at its stop flag and idle timeout.
 const HALTED_POLL: Duration = Duration::from_millis(20);
 
 /// The first value of a tick's output that is not finite, named for the event: a
-/// surface position (packed f32 triples) or an instrument's local model or force.
-pub fn first_non_finite(surface: &[f32], instruments: &[v1::InstrumentState]) -> Option<String> {
-    if let Some(i) = surface.iter().position(|v| !v.is_finite()) {
+/// surface position (packed f32 triples) or an instrument's local model or force; or
+/// the first surface position beyond ±[`MAX_COORDINATE_M`].
+pub fn first_fault(surface: &[f32], instruments: &[v1::InstrumentState]) -> Option<String> {
+    let bound = MAX_COORDINATE_M as f32;
+    if let Some(i) = surface
+        .iter()
+        .position(|v| !v.is_finite() || v.abs() > bound)
+    {
+        let beyond = if surface[i].is_finite() {
+            format!(
+                ", beyond the ±{MAX_COORDINATE_M} m a scene's mesh must lie in: the tissue \
+                 was thrown out of any physical place"
+            )
+        } else {
+            String::new()
+        };
         return Some(format!(
-            "surface vertex {} has position component {} = {}",
+            "surface vertex {} has position component {} = {}{beyond}",
             i / 3,
             ["x", "y", "z"][i % 3],
             surface[i]

@@ -98,7 +98,7 @@ impl Mechanics {
             }
             pending.clear();
             let frame = outputs.produce(&self.sim, |k| holders[k], |event| pending.push(event));
-            if let Some(fault) = super::first_non_finite(&frame.surface, &frame.instruments) {
+            if let Some(fault) = super::first_fault(&frame.surface, &frame.instruments) {
                 self.halt(fault, idle_since);
                 break;
             }

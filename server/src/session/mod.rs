@@ -41,7 +41,7 @@ use crate::recording::{Item, Recorder, Report, SessionHeader};
 pub use closing::Closing;
 pub use error::SessionError;
 pub use eviction::Eviction;
-pub use halt::first_non_finite;
+pub use halt::first_fault;
 pub use idle::{MAX_IDLE_TIMEOUT_S, idle_timeout};
 pub use input::{PoseIn, RateLimit, Rejection, Slot, Workspace, check_pose};
 
@@ -68,7 +68,8 @@ pub struct SessionStats {
     pub poses_rejected: AtomicU64,
     /// Open station and observe streams.
     pub connected: AtomicU64,
-    /// Why the simulation stopped (a non-finite value), once it has.
+    /// Why the simulation stopped (a non-finite value, or the surface beyond
+    /// ±`MAX_COORDINATE_M`), once it has.
     pub simulation_error: OnceLock<String>,
 }
 

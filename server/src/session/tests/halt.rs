@@ -10,11 +10,12 @@ use laparo_proto::v1;
 use tokio::sync::{broadcast, watch};
 
 use crate::engine::scene::Scene;
+use crate::engine::scene::limits::MAX_COORDINATE_M;
 use crate::frame::Frame;
 use crate::frame::description::description;
 use crate::recording::{Recorder, Recording, SessionHeader};
 use crate::session::mechanics::{Mechanics, spawn};
-use crate::session::{SessionStats, first_non_finite};
+use crate::session::{SessionStats, first_fault};
 
 fn state(force: [f64; 3]) -> v1::InstrumentState {
     v1::InstrumentState {
@@ -32,17 +33,25 @@ fn state(force: [f64; 3]) -> v1::InstrumentState {
 }
 
 #[test]
-fn the_first_non_finite_value_of_a_frame_is_named() {
+fn the_first_non_finite_or_far_flung_value_of_a_frame_is_named() {
     assert_eq!(
-        first_non_finite(&[0.0, 1.0, 2.0], &[state([1.0, 0.0, 0.0])]),
+        first_fault(&[0.0, 1.0, 2.0], &[state([1.0, 0.0, 0.0])]),
         None
     );
-    let surface = first_non_finite(&[0.0, 1.0, 2.0, 3.0, f32::INFINITY, 5.0], &[]).unwrap();
+    let surface = first_fault(&[0.0, 1.0, 2.0, 3.0, f32::INFINITY, 5.0], &[]).unwrap();
     assert!(
         surface.contains("surface vertex 1") && surface.contains("y"),
         "{surface}"
     );
-    let force = first_non_finite(&[0.0; 3], &[state([0.0, f64::NAN, 0.0])]).unwrap();
+    // Finite, but beyond the range a scene's mesh must lie in.
+    let bound = MAX_COORDINATE_M as f32;
+    assert_eq!(first_fault(&[bound, -bound, 0.0], &[]), None);
+    let thrown = first_fault(&[0.0, 0.0, 0.0, 1.0, 2.0, -2.0 * bound], &[]).unwrap();
+    assert!(
+        thrown.contains("surface vertex 1") && thrown.contains("z") && thrown.contains("beyond"),
+        "{thrown}"
+    );
+    let force = first_fault(&[0.0; 3], &[state([0.0, f64::NAN, 0.0])]).unwrap();
     assert!(
         force.contains("`left`") && force.contains("force"),
         "{force}"
@@ -57,11 +66,7 @@ fn the_first_non_finite_value_of_a_frame_is_named() {
         }),
         ..state([0.0; 3])
     };
-    assert!(
-        first_non_finite(&[], &[model])
-            .unwrap()
-            .contains("local model")
-    );
+    assert!(first_fault(&[], &[model]).unwrap().contains("local model"));
 }
 
 #[test]
