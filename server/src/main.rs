@@ -13,8 +13,8 @@ use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
 use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
-use laparo_server::headless;
 use laparo_server::headless::trajectory::Trajectory;
+use laparo_server::headless::{self, MAX_RUN_SECONDS};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -243,10 +243,12 @@ fn positive_rate(s: &str) -> Result<f64, String> {
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
-    if v.is_finite() && v > 0.0 && v <= 1e6 {
+    if v.is_finite() && v > 0.0 && v <= MAX_RUN_SECONDS {
         Ok(v)
     } else {
-        Err(format!("{s} is not a duration in (0, 1e6] seconds"))
+        Err(format!(
+            "{s} is not a duration in (0, {MAX_RUN_SECONDS:e}] seconds"
+        ))
     }
 }
 

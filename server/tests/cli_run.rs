@@ -157,6 +157,26 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("`scalpel`"));
+
+    // A keyframe beyond the longest run is refused by line, before any tick: a run
+    // as long as 1e300 s once overflowed the tick count and aborted the process.
+    std::fs::write(
+        &csv,
+        "0.0, left, 0, 0, 0.09, 0, 0, 1\n1e300, left, 0, 0, 0.09, 0, 0, 1\n",
+    )
+    .unwrap();
+    let out = server()
+        .args(["run", "--trajectory"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("press.csv:2:")
+            && stderr.contains("time 1e300 s is beyond the 1e6 s a run may last"),
+        "{stderr}"
+    );
 }
 
 /// The `Points` block of a VTU file.

@@ -101,6 +101,15 @@ impl Trajectory {
             if t < 0.0 {
                 return Err(err(line, format!("time {t} is negative")));
             }
+            if t > super::MAX_RUN_SECONDS {
+                return Err(err(
+                    line,
+                    format!(
+                        "time {t:e} s is beyond the {:e} s a run may last",
+                        super::MAX_RUN_SECONDS
+                    ),
+                ));
+            }
             let tip = Point3::new(num[1], num[2], num[3]);
             if tip.coords.amax() > ABSURD_DISTANCE {
                 return Err(err(
