@@ -36,9 +36,13 @@ impl TetMesh {
     ///
     /// # Errors
     ///
-    /// None for a mesh that loaded (the children of a tetrahedron fill it, and their
-    /// boundary is its boundary split); the result still goes through the checks and
-    /// the orientation of [`TetMesh::from_tets`].
+    /// The children of a tetrahedron fill it and their boundary is its boundary
+    /// split, so the result passes every check a loaded mesh passed, but one: a
+    /// child's flatness `6V / L³` is at least an eighth of its parent's (`V/8`, and no
+    /// edge longer than the parent's longest), so a parent within a factor 8 of
+    /// `FLAT_TOLERANCE` (`topology.rs`) can have children flat by that test.
+    /// Errors name a child by its parent: the parent's position among this mesh's
+    /// tetrahedra, from 1.
     pub fn refined(&self) -> Result<TetMesh, MeshError> {
         let n = self.vertex_count() as u32;
         let mid = |a: u32, b: u32| -> u32 {
@@ -110,7 +114,8 @@ impl TetMesh {
                 .copied()
                 .chain((0..self.edges.len() as u64).map(|e| first_new_id + e))
                 .collect(),
-            element_ids: (1..=tets.len() as u64).collect(),
+            // Each child is named by its parent (eight children a parent, in order).
+            element_ids: (0..tets.len() as u64).map(|i| i / 8 + 1).collect(),
             tet_tags,
             positions,
             tets,

@@ -41,10 +41,23 @@ pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
             ),
         ));
     }
-    for _ in 0..refine {
-        mesh = mesh.refined().map_err(|source| SceneError::Mesh {
-            scene: scene.source.clone(),
-            source,
+    for pass in 1..=refine {
+        mesh = mesh.refined().map_err(|source| {
+            let what = match source.kind {
+                MeshErrorKind::DegenerateTet { element, .. } => format!(
+                    "its tetrahedron {element} (in the order of the mesh it refined) is so \
+                     nearly flat that its children are flat ({})",
+                    source.kind
+                ),
+                _ => source.to_string(),
+            };
+            scene.invalid(
+                "mesh.refine",
+                format!(
+                    "refinement {pass} of {refine} cannot be simulated: {what}; refine fewer \
+                     times or mend the mesh"
+                ),
+            )
         })?;
     }
     let n = mesh.vertex_count();

@@ -231,3 +231,31 @@ fn a_refinement_beyond_the_stated_bounds_is_refused_before_any_work() {
     assert_eq!(sim.mesh.tets.len(), 8 * 596);
     assert_eq!(sim.fixed, [3, 39, 64]);
 }
+
+#[test]
+fn a_refinement_that_would_flatten_a_nearly_flat_tetrahedron_names_mesh_refine() {
+    // One tetrahedron 1.3e-12 of the way from flat (6V / L³; the mesh check refuses
+    // 1e-12 and below): it loads, but its inner children are flatter than that.
+    let dir = std::env::temp_dir().join(format!("laparo-refine-flat-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("nearly-flat.msh");
+    std::fs::write(
+        &file,
+        "$NOD\n4\n1 0 0 0\n2 0.1 0 0\n3 0.05 0.08660254037844387 0\n\
+         4 0.05000000000000001 0.028867513459481287 1.5011106998930272e-13\n$ENDNOD\n\
+         $ELM\n1\n1 4 1 1 4 1 2 3 4\n$ENDELM\n",
+    )
+    .unwrap();
+    let text = MINIMAL
+        .replace("builtin:liver.msh", &file.display().to_string())
+        .replace("nodes = [3, 39, 64]", "nodes = [1]");
+    let unrefined = build(&text);
+    let refined = build(&text.replace("scale = 0.03", "scale = 0.03\nrefine = 1"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(unrefined.is_ok(), "{unrefined:?}");
+    refused(
+        refined,
+        "mesh.refine",
+        "refinement 1 of 1 cannot be simulated: its tetrahedron 1",
+    );
+}
