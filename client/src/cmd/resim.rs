@@ -34,7 +34,17 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
     if let Some(scene) = &args.scene {
         meta.scene_toml =
             std::fs::read_to_string(scene).map_err(|e| format!("{}: {e}", scene.display()))?;
-        meta.scene_dir = scene.parent().map(Path::to_path_buf);
+        // A bare file name's folder is the working one (its parent is empty).
+        meta.scene_dir = scene
+            .parent()
+            .map(|p| {
+                if p.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    p
+                }
+            })
+            .map(Path::to_path_buf);
     }
     let total = recording.message_counts().get(TOPIC_SURFACE).copied();
     // A progress line once a second on stderr, for long recordings.

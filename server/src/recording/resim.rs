@@ -40,8 +40,8 @@ pub enum ResimError {
     #[error("the recorded scene does not build: {0}")]
     Scene(#[from] SceneError),
     #[error(
-        "the scene built from the recording has {built} surface coordinates where the \
-         recording has {recorded}: its mesh is not the recorded one{hint}"
+        "the scene to re-simulate has {built} surface coordinates where the recording \
+         has {recorded}: its mesh is not the recorded one{hint}"
     )]
     MeshSize {
         built: usize,
@@ -49,7 +49,7 @@ pub enum ResimError {
         hint: String,
     },
     #[error(
-        "the scene built from the recording does not rest where the recorded one did \
+        "the scene to re-simulate does not rest where the recorded one did \
          (surface vertex {vertex} is {distance_m:e} m away): its mesh or scene is not the \
          recorded one{hint}"
     )]
