@@ -171,3 +171,45 @@ fn slow_replays_beyond_the_blocking_pool_starve_neither_listing_nor_another_repl
         let _ = std::fs::remove_dir_all(&dir);
     });
 }
+
+/// Before a replay's start offset nothing is sent, yet a re-simulated burst still
+/// ends after `BURST_TICKS` ticks: the reading goes back to `feed`, which looks
+/// whether the stream is still wanted, between every few ticks. A first burst used
+/// to re-simulate everything up to the offset at once: a large scene's replay,
+/// cancelled at once, worked on for 40 s past the `--max-replays` slot it had freed.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_resimulated_burst_before_the_start_offset_stops_after_a_few_ticks() {
+    use laparo_server::service::replay::{BURST_TICKS, ReadResimulated, Reader};
+    let dir = recordings_dir("burst-before-offset");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        ..ServeConfig::default()
+    })
+    .await;
+    let rec = record_press(&server.channel().await, &dir, 1.0).await;
+    server.shutdown().await.unwrap();
+    let name = rec.file.file_name().unwrap().to_str().unwrap().to_string();
+    let recording = Recording::open(&rec.file).unwrap();
+    let ticks = recorded_messages(&recording)
+        .iter()
+        .filter(|(_, m)| matches!(m.kind, Some(v1::observe_message::Kind::SurfaceFrame(_))))
+        .count();
+    assert!(ticks > 3 * BURST_TICKS, "{ticks} ticks recorded");
+    // An offset past the recording's end: every burst but the last sends nothing.
+    let mut reader = ReadResimulated::new(std::sync::Arc::new(recording), name, 1e3);
+    let mut bursts = 0;
+    loop {
+        let mut out = Vec::new();
+        let more = reader.read(&mut out);
+        bursts += 1;
+        if !more {
+            break;
+        }
+        assert!(out.is_empty(), "burst {bursts} sent before the offset");
+    }
+    assert!(
+        bursts >= ticks / BURST_TICKS,
+        "{ticks} ticks re-simulated in {bursts} bursts"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -306,8 +306,11 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let offset = start_offset(r.start_offset_s)?;
         let playback = Playback::from_request(r.mode)?;
         let dir = self.dir()?;
-        // Held by the pacing task until the stream ends.
-        let slot = self.registry.replays.take()?;
+        // Held until both the reading and the pacing have ended: a client that goes
+        // ends the pacing at once, but a reading burst on the blocking pool (a
+        // re-simulated tick of a large scene takes a good part of a second) runs to
+        // its end; the slot is the limit on that work too.
+        let slot = Arc::new(self.registry.replays.take()?);
         let registry = self.registry.clone();
         let opened = {
             let name = name.clone();
@@ -320,13 +323,16 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let _ = tx.try_send(Ok(scene));
         let (feed_tx, feed_rx) = mpsc::channel(READ_AHEAD);
         let recording = Arc::new(opened.recording);
+        let reading = slot.clone();
         match playback {
-            Playback::Recorded => {
-                tokio::spawn(feed(ReadRecorded::new(recording, name, offset), feed_tx))
-            }
-            Playback::Resimulate => {
-                tokio::spawn(feed(ReadResimulated::new(recording, name, offset), feed_tx))
-            }
+            Playback::Recorded => tokio::spawn(async move {
+                feed(ReadRecorded::new(recording, name, offset), feed_tx).await;
+                drop(reading);
+            }),
+            Playback::Resimulate => tokio::spawn(async move {
+                feed(ReadResimulated::new(recording, name, offset), feed_tx).await;
+                drop(reading);
+            }),
         };
         let shutdown = self.registry.shutting_down();
         tokio::spawn(async move {

@@ -63,6 +63,15 @@ impl Feed<'_> {
 /// a mechanics step) and its memory stays a few frames.
 pub const BURST_MESSAGES: usize = 16;
 
+/// Recorded messages a burst reads at most, sent or not, and ticks a re-simulated
+/// burst steps at most. Before a start offset nothing is sent, so without these a
+/// first burst read (or re-simulated) everything up to the offset on one blocking
+/// thread, deaf to a client that had gone: a re-simulated replay of a large scene
+/// cancelled at once went on for 40 s. Between bursts [`feed`] looks whether the
+/// stream is still wanted.
+pub const BURST_READS: usize = 1024;
+pub const BURST_TICKS: usize = 16;
+
 /// A replay's reading, done in bursts on the blocking pool ([`feed`]).
 pub trait Reader: Send + 'static {
     /// Reads the next messages into `out` (about [`BURST_MESSAGES`]; a re-simulated
@@ -180,7 +189,9 @@ impl ReadRecorded {
 impl Reader for ReadRecorded {
     fn read(&mut self, burst: &mut Burst) -> bool {
         let mut out = Feed { out: burst };
-        while out.out.len() < BURST_MESSAGES {
+        let mut reads = 0;
+        while out.out.len() < BURST_MESSAGES && reads < BURST_READS {
+            reads += 1;
             let Some(m) = self.messages.next() else {
                 self.gate.flush(&mut out);
                 return false;
@@ -258,7 +269,9 @@ impl Reader for ReadResimulated {
                 }
             },
         };
-        while out.out.len() < BURST_MESSAGES {
+        let (mut reads, mut ticks) = (0, 0);
+        while out.out.len() < BURST_MESSAGES && reads < BURST_READS && ticks < BURST_TICKS {
+            reads += 1;
             let Some(m) = self.messages.next() else {
                 self.gate.flush(&mut out);
                 return false;
@@ -278,6 +291,7 @@ impl Reader for ReadResimulated {
                 Recorded::Surface(f) => f.tick,
                 _ => continue,
             };
+            ticks += 1;
             let gate = &mut self.gate;
             let sent = run.run_to(tick, |stepped| {
                 // The order a session writes a tick in: its contact events, then the
