@@ -62,6 +62,88 @@ async fn a_session_past_the_limit_is_refused_naming_the_flag_until_one_closes() 
     server.shutdown().await.unwrap();
 }
 
+/// A scene larger than a session's share of memory counts as several sessions:
+/// SOFA's liver refined twice (38,144 tetrahedra) as two. Sessions of a scene of
+/// any size could otherwise fill the limit, sized for 64 MiB a session, with
+/// gigabytes (a coarse liver refined three times holds 400 MB).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_large_scene_counts_as_several_sessions_and_its_refusal_says_so() {
+    let dir = recordings_dir("large-scene");
+    let scenes = dir.join("scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let default = include_str!("../../server/scenes/default.toml");
+    let large = default
+        .replacen("name = \"default\"", "name = \"large\"", 1)
+        .replacen("[mesh]", "[mesh]\nrefine = 2", 1);
+    std::fs::write(scenes.join("large.toml"), large).unwrap();
+    let server = TestServer::start(ServeConfig {
+        scene_dir: Some(scenes.clone()),
+        recordings: Some(dir.clone()),
+        capacity: limits(3, 4),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let mut sessions = SessionsClient::new(ch.clone());
+    let of = |scene: &str| v1::CreateSessionRequest {
+        scene: scene.into(),
+        ..create()
+    };
+    let recorded = sessions
+        .create_session(v1::CreateSessionRequest {
+            record: Some(true),
+            ..of("large")
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    // Re-simulating its recording would build the scene again, 7 replays' worth of
+    // memory where the server streams 4; as recorded it is one replay.
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: recorded.session_id,
+            reason: "recorded".into(),
+        })
+        .await
+        .unwrap();
+    let file = recorded.recording_file.unwrap();
+    let mut resimulated = replay_request(&file, None, None);
+    resimulated.mode = v1::ReplayMode::Resimulate as i32;
+    let refused = RecordingsClient::new(ch.clone())
+        .replay(resimulated)
+        .await
+        .unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    for words in [
+        "38144 tetrahedra",
+        "counts as 7 of the 4 replays",
+        "--max-replays",
+    ] {
+        assert!(refused.message().contains(words), "{refused:?}");
+    }
+    RecordingsClient::new(ch.clone())
+        .replay(replay_request(&file, None, None))
+        .await
+        .unwrap();
+    sessions.create_session(of("large")).await.unwrap();
+    let refused = sessions.create_session(of("large")).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    for words in [
+        "`large`",
+        "38144 tetrahedra",
+        "counts as 2 of the 3",
+        "--max-sessions",
+    ] {
+        assert!(refused.message().contains(words), "{refused:?}");
+    }
+    // The one left is a default session's.
+    sessions.create_session(of("default")).await.unwrap();
+    let refused = sessions.create_session(of("default")).await.unwrap_err();
+    assert!(refused.message().contains("3 sessions"), "{refused:?}");
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A replay at the slowest speed, open until dropped, once its scene has come.
 async fn slow_replay(
     ch: &tonic::transport::Channel,

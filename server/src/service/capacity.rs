@@ -5,7 +5,10 @@
 //! The defaults, for a machine of `c` cores (`available_parallelism`), `m` bytes of
 //! memory (`MemTotal`) and a soft limit of `f` file descriptors (`RLIMIT_NOFILE`):
 //!
-//! - **sessions** = max(1, min(16·c, m / 64 MiB)). A default session ticks at
+//! - **sessions** = max(1, min(16·c, m / 64 MiB)). A session of a scene larger
+//!   than about 22,000 tetrahedra counts as several ([`session_weight`]: its peak
+//!   memory over 64 MiB, at 2.6 kB a tetrahedron), so that the limit bounds memory
+//!   whatever scenes are offered. A default session ticks at
 //!   60 Hz; its tick, its recorder and the encoding of its frames for two 1 kHz
 //!   stations and an observer or two take a few percent of a core. The soak bench's
 //!   ramp (`cargo bench -p laparo-tests --bench soak -- --ramp`) on a 2-core machine,
@@ -22,7 +25,9 @@
 //! - **replays** = max(1, min(32·c, m / 4 / 16 MiB)). A replay holds one
 //!   decompressed chunk (at most a few MiB) and a read-ahead of messages; its
 //!   reading runs in short bursts on the blocking pool, so what bounds it is memory
-//!   and the cores that decode: a quarter of the memory at 16 MiB each.
+//!   and the cores that decode: a quarter of the memory at 16 MiB each. A replay
+//!   that re-simulates builds its scene and counts as its memory over 16 MiB
+//!   ([`replay_weight`]).
 
 use std::sync::Arc;
 
@@ -144,6 +149,57 @@ impl Default for Capacity {
     }
 }
 
+/// Memory a session holds beyond its mesh, bytes (the default scene's session peaks
+/// at 8 MB resident in `laparo-server run`).
+const SESSION_BASE_MEMORY: u64 = 8 << 20;
+/// Memory a session holds per tetrahedron at its peak, while the scene is built,
+/// bytes: SOFA's liver refined three times (305,152 tetrahedra, corotational,
+/// implicit) peaks at 790 MB resident in `laparo-server run`, about 2.6 kB each.
+const SESSION_MEMORY_PER_TET: u64 = 2600;
+
+/// How many sessions of the [`SESSION_MEMORY`] the session limit is sized by a
+/// session of `tets` tetrahedra counts as: one for every scene up to 22,584
+/// tetrahedra (liver-20k), several for larger ones (80,000 tetrahedra 4; 300,000,
+/// or SOFA's liver refined three times, 12), so that sessions of large scenes
+/// cannot take more memory than the limit was sized for.
+pub fn session_weight(tets: usize) -> usize {
+    let bytes =
+        SESSION_BASE_MEMORY.saturating_add(SESSION_MEMORY_PER_TET.saturating_mul(tets as u64));
+    usize::try_from(bytes.div_ceil(SESSION_MEMORY))
+        .unwrap_or(usize::MAX)
+        .max(1)
+}
+
+/// How many replays of the [`REPLAY_MEMORY`] the replay limit is sized by a replay
+/// that re-simulates a scene of `tets` tetrahedra counts as: it builds the scene,
+/// and holds what a session of it would ([`session_weight`]'s memory). A replay as
+/// recorded counts as one whatever its scene.
+pub fn replay_weight(tets: usize) -> usize {
+    let bytes =
+        SESSION_BASE_MEMORY.saturating_add(SESSION_MEMORY_PER_TET.saturating_mul(tets as u64));
+    usize::try_from(bytes.div_ceil(REPLAY_MEMORY))
+        .unwrap_or(usize::MAX)
+        .max(1)
+}
+
+/// `RESOURCE_EXHAUSTED` for a session of scene `scene` (`tets` tetrahedra, counting
+/// as `weight` sessions) when sessions counting as `open` of `limit` run.
+pub fn too_large_a_session(
+    scene: &str,
+    tets: usize,
+    weight: usize,
+    open: usize,
+    limit: usize,
+) -> Status {
+    Status::resource_exhausted(format!(
+        "scene `{scene}` has {tets} tetrahedra and counts as {weight} of the {limit} sessions \
+         the server runs at once (--max-sessions: one session per {} MiB); sessions counting \
+         as {open} are open: close some (CloseSession) or start the server with a higher \
+         --max-sessions",
+        SESSION_MEMORY >> 20
+    ))
+}
+
 /// `RESOURCE_EXHAUSTED` for a new session when `open` of `limit` are open.
 pub fn too_many_sessions(limit: usize) -> Status {
     Status::resource_exhausted(format!(
@@ -177,6 +233,39 @@ impl ReplaySlots {
                 self.limit
             ))
         })
+    }
+
+    /// `more` slots added to `held` (a re-simulated replay of a large scene counts
+    /// as several replays, [`replay_weight`]), or `RESOURCE_EXHAUSTED` naming the
+    /// scene's size, the limit and its flag.
+    pub fn take_more(
+        &self,
+        held: &mut OwnedSemaphorePermit,
+        more: usize,
+        tets: usize,
+    ) -> Result<(), Status> {
+        if more == 0 {
+            return Ok(());
+        }
+        let permits = u32::try_from(more).unwrap_or(u32::MAX);
+        let extra = self
+            .slots
+            .clone()
+            .try_acquire_many_owned(permits)
+            .map_err(|_| {
+                Status::resource_exhausted(format!(
+                    "re-simulating this recording builds its scene of {tets} tetrahedra, \
+                     which counts as {} of the {} replays the server streams at once \
+                     (--max-replays: one replay per {} MiB), more than are free: try again \
+                     when replays end, replay it as recorded, or start the server with a \
+                     higher --max-replays",
+                    more + 1,
+                    self.limit,
+                    REPLAY_MEMORY >> 20
+                ))
+            })?;
+        held.merge(extra);
+        Ok(())
     }
 
     /// Replays streaming now.
@@ -272,5 +361,35 @@ mod tests {
         assert_eq!(e.code(), tonic::Code::ResourceExhausted);
         assert!(e.message().contains("64 sessions"));
         assert!(e.message().contains("--max-sessions"));
+    }
+
+    #[test]
+    fn a_session_counts_as_its_peak_memory_in_sessions_of_64_mib() {
+        // The default scene and liver-20k are one session each; a session's count
+        // is its base and per-tetrahedron memory over 64 MiB, rounded up.
+        assert_eq!(session_weight(0), 1);
+        assert_eq!(session_weight(596), 1);
+        assert_eq!(session_weight(20_039), 1);
+        assert_eq!(session_weight(22_584), 1);
+        assert_eq!(session_weight(22_585), 2);
+        assert_eq!(session_weight(596 * 64), 2);
+        assert_eq!(session_weight(596 * 512), 12);
+        // No overflow: an absurd size counts as more sessions than any limit.
+        assert!(session_weight(usize::MAX) > 1 << 30);
+        // A re-simulated replay counts in 16 MiB replays; the default scene as one.
+        assert_eq!(replay_weight(596), 1);
+        assert_eq!(replay_weight(596 * 64), 7);
+        assert_eq!(replay_weight(596 * 512), 48);
+        let e = too_large_a_session("big", 305_152, 12, 3, 8);
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+        for words in [
+            "`big`",
+            "305152 tetrahedra",
+            "12 of the 8",
+            "--max-sessions",
+            "64 MiB",
+        ] {
+            assert!(e.message().contains(words), "{}", e.message());
+        }
     }
 }

@@ -31,7 +31,8 @@
 //! ([`READ_AHEAD`]) keeps the reading waiting for it, without a thread: the file is
 //! read in short bursts on the blocking pool ([`super::replay::feed`]). At most
 //! [`super::capacity::Capacity::replays`] replays stream at once; one more is
-//! answered `RESOURCE_EXHAUSTED`. From an offset, the
+//! answered `RESOURCE_EXHAUSTED`, and a re-simulated replay of a large scene counts
+//! as several ([`super::capacity::replay_weight`]). From an offset, the
 //! newest tick at or before it (its surface and instrument states, and the events
 //! stamped at the offset) goes first, at once, so that a viewer shows the liver as it
 //! was there; earlier ticks and events are not sent. The stream ends with the
@@ -49,6 +50,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::{Caller, Role, caller};
+use super::capacity::replay_weight;
 use super::read_status::read_status;
 use super::registry::Registry;
 use super::replay::{ReadRecorded, ReadResimulated, feed, pace};
@@ -310,12 +312,23 @@ impl v1::recordings_server::Recordings for RecordingsService {
         // ends the pacing at once, but a reading burst on the blocking pool (a
         // re-simulated tick of a large scene takes a good part of a second) runs to
         // its end; the slot is the limit on that work too.
-        let slot = Arc::new(self.registry.replays.take()?);
+        let mut slot = self.registry.replays.take()?;
         let registry = self.registry.clone();
         let opened = {
             let name = name.clone();
             blocking(move || open_for_replay(&registry, &dir, &name, &caller, offset)).await?
         };
+        if playback == Playback::Resimulate {
+            // Re-simulating builds the recorded scene: a large one counts as several.
+            let tets = opened
+                .scene
+                .summary
+                .as_ref()
+                .map_or(0, |s| s.tetrahedron_count as usize);
+            let more = replay_weight(tets) - 1;
+            self.registry.replays.take_more(&mut slot, more, tets)?;
+        }
+        let slot = Arc::new(slot);
         let (tx, rx) = mpsc::channel(OUTBOUND);
         let scene = v1::ObserveMessage {
             kind: Some(v1::observe_message::Kind::Scene(opened.scene)),

@@ -1,6 +1,6 @@
 //! The scenes a server offers and the sessions it runs.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
@@ -10,17 +10,20 @@ use laparo_proto::text::printable;
 use tokio::sync::watch;
 use tonic::Status;
 
-use super::capacity::{Capacity, ReplaySlots, too_many_sessions};
+use super::capacity::{
+    Capacity, ReplaySlots, session_weight, too_large_a_session, too_many_sessions,
+};
 use super::catalog::SceneCatalog;
+use crate::engine::scene::Scene;
 use crate::recording::Recorder;
 use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// A session being started, counted until it is in the map (or failed).
-struct Starting<'a>(&'a AtomicUsize);
+struct Starting<'a>(&'a AtomicUsize, usize);
 
 impl Drop for Starting<'_> {
     fn drop(&mut self) {
-        self.0.fetch_sub(1, Ordering::AcqRel);
+        self.0.fetch_sub(self.1, Ordering::AcqRel);
     }
 }
 
@@ -42,7 +45,10 @@ pub struct Registry {
     /// Most sessions open at once.
     max_sessions: usize,
     /// Sessions being started, counted against [`Registry::max_sessions`].
+    /// Sessions starting, each counted as its [`session_weight`].
     starting: AtomicUsize,
+    /// The tetrahedra of each scene, once a session of it was asked for.
+    sizes: Mutex<HashMap<String, usize>>,
     /// The replays streaming now, and their limit.
     pub replays: ReplaySlots,
 }
@@ -64,6 +70,7 @@ impl Registry {
             joins: Default::default(),
             max_sessions: usize::MAX,
             starting: AtomicUsize::new(0),
+            sizes: Mutex::new(HashMap::new()),
             replays: ReplaySlots::new(usize::MAX >> 4),
         }
     }
@@ -75,15 +82,49 @@ impl Registry {
         self
     }
 
-    /// Counts a session about to start against the limit, or refuses it.
-    fn reserve(&self) -> Result<Starting<'_>, Status> {
+    /// Counts a session of scene `name` (`tets` tetrahedra) about to start against
+    /// the limit, as [`session_weight`] sessions, or refuses it.
+    fn reserve(&self, name: &str, tets: usize) -> Result<Starting<'_>, Status> {
+        let weight = session_weight(tets);
         let mut map = self.map();
         map.retain(|_, s| !s.is_closed());
-        if map.len() + self.starting.load(Ordering::Acquire) >= self.max_sessions {
-            return Err(too_many_sessions(self.max_sessions));
+        let open = open_weight(&map) + self.starting.load(Ordering::Acquire);
+        if open + weight > self.max_sessions {
+            return Err(if weight > 1 {
+                too_large_a_session(name, tets, weight, open, self.max_sessions)
+            } else {
+                too_many_sessions(self.max_sessions)
+            });
         }
-        self.starting.fetch_add(1, Ordering::AcqRel);
-        Ok(Starting(&self.starting))
+        self.starting.fetch_add(weight, Ordering::AcqRel);
+        Ok(Starting(&self.starting, weight))
+    }
+
+    /// The tetrahedra of scene `name` as built, read from its mesh the first time
+    /// (the mesh alone, not the model) and remembered: scenes do not change while
+    /// the server runs.
+    fn tetrahedra_of(&self, name: &str, scene: &Scene) -> Result<usize, Status> {
+        let known = |sizes: &Mutex<HashMap<String, usize>>| {
+            sizes
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .get(name)
+                .copied()
+        };
+        if let Some(tets) = known(&self.sizes) {
+            return Ok(tets);
+        }
+        let tets = tokio::task::block_in_place(|| scene.load_mesh())
+            .map_err(|e| {
+                Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
+            })?
+            .tets
+            .len();
+        self.sizes
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(name.to_string(), tets);
+        Ok(tets)
     }
 
     /// The recorders still writing, forgetting the others.
@@ -130,7 +171,8 @@ impl Registry {
             .get(name)
             .ok_or_else(|| Status::not_found(format!("no scene `{}`", printable(name))))?
             .clone();
-        let reserved = self.reserve()?;
+        let tets = self.tetrahedra_of(name, &scene)?;
+        let reserved = self.reserve(name, tets)?;
         let id = format!("s{}", self.next.fetch_add(1, Ordering::Relaxed));
         let record = record.unwrap_or(scene.recording.enabled);
         let config = SessionConfig {
@@ -210,4 +252,18 @@ impl Registry {
             s.join_until(deadline);
         }
     }
+}
+
+/// The open sessions, each counted as its scene's [`session_weight`].
+fn open_weight(map: &BTreeMap<String, Arc<Session>>) -> usize {
+    map.values().map(|s| session_weight(tetrahedra(s))).sum()
+}
+
+/// The tetrahedra of a session's scene as built.
+fn tetrahedra(session: &Session) -> usize {
+    session
+        .description
+        .summary
+        .as_ref()
+        .map_or(0, |s| s.tetrahedron_count as usize)
 }
