@@ -143,6 +143,15 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     // The run lasts as long as the trajectory, and the instrument holds tissue at the end.
     assert!(stdout.contains("ran 60 ticks"), "{stdout}");
+    // Its tick times are order statistics of real ticks: 0 < median ≤ p99 ≤ max.
+    let summary = stdout.lines().find(|l| l.starts_with("ran ")).unwrap();
+    let ms = |after: &str| -> f64 {
+        let at = summary.find(after).unwrap() + after.len();
+        let value = summary[at..].split_whitespace().next().unwrap();
+        value.parse().unwrap()
+    };
+    let (median, p99, max) = (ms("tick median "), ms("p99 "), ms("max "));
+    assert!(0.0 < median && median <= p99 && p99 <= max, "{summary}");
     let last = stdout.lines().rfind(|l| l.starts_with("tick")).unwrap();
     assert!(
         last.contains("left: ") && !last.contains("left: 0 held"),

@@ -68,9 +68,10 @@ pub fn run_observed(
     mut after_tick: impl FnMut(&Simulation) -> bool,
 ) -> RunSummary {
     let ticks = (seconds / sim.dt).round().max(1.0) as u64;
-    // Tick times in nanoseconds to three significant digits, in memory that does
-    // not grow with the run.
-    let mut times = Histogram::<u64>::new(3).expect("three significant digits is valid");
+    // Tick times in nanoseconds to three significant digits, from 1 ns to an hour
+    // (a longer tick counts as an hour), in memory that does not grow with the run.
+    let mut times = Histogram::<u64>::new_with_bounds(1, 3_600_000_000_000, 3)
+        .expect("bounds and three significant digits are valid");
     let mut wall = Duration::ZERO;
     let mut ran = 0u64;
     let (mut max_substeps, mut cg_total, mut unconverged) = (0, 0u64, 0);
