@@ -25,6 +25,14 @@ fn succeed(command: &mut Command) -> std::process::Output {
     out
 }
 
+/// Runs `command`, which must fail with status 1, and returns what it printed on
+/// standard error.
+fn fail(command: &mut Command) -> String {
+    let out = command.output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("laparo-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -88,35 +96,25 @@ fn static_solve_of_the_sofa_demo_runs() {
 
 #[test]
 fn bad_input_fails_with_a_message_naming_it() {
-    let missing = server()
-        .args(["run", "--scene", "/no/such/scene.toml"])
-        .output()
-        .unwrap();
-    assert_eq!(missing.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&missing.stderr).contains("/no/such/scene.toml"));
+    assert!(
+        fail(server().args(["run", "--scene", "/no/such/scene.toml"]))
+            .contains("/no/such/scene.toml")
+    );
 
     let bad = temp("bad.toml");
     std::fs::write(&bad, "name = \"x\"\n[mesh]\nfile = \"builtin:liver.msh\"\n[material]\nyoung_modulus = 1.0\npoisson_ratio = 0.7\ndensity = 1.0\n").unwrap();
-    let out = server()
-        .args(["run", "--scene"])
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("material.poisson_ratio"));
+    assert!(fail(server().args(["run", "--scene"]).arg(&bad)).contains("material.poisson_ratio"));
 
-    let unwritable = server()
-        .args([
+    assert!(
+        fail(server().args([
             "run",
             "--seconds",
             "0.1",
             "--export",
             "/no/such/dir/out.vtu",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(unwritable.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&unwritable.stderr).contains("/no/such/dir/out.vtu"));
+        ]))
+        .contains("/no/such/dir/out.vtu")
+    );
 
     for args in [
         &["run", "--seconds", "nan"][..],
@@ -159,13 +157,7 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
     );
 
     std::fs::write(&csv, "0.0, scalpel, 0, 0, 0.09, 0, 0, 1\n").unwrap();
-    let out = server()
-        .args(["run", "--trajectory"])
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("`scalpel`"));
+    assert!(fail(server().args(["run", "--trajectory"]).arg(&csv)).contains("`scalpel`"));
 
     // A keyframe beyond the longest run is refused by line, before any tick: a run
     // as long as 1e300 s once overflowed the tick count and aborted the process.
@@ -174,13 +166,7 @@ fn trajectory_drives_the_instruments_and_bad_ones_are_named() {
         "0.0, left, 0, 0, 0.09, 0, 0, 1\n1e300, left, 0, 0, 0.09, 0, 0, 1\n",
     )
     .unwrap();
-    let out = server()
-        .args(["run", "--trajectory"])
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stderr = fail(server().args(["run", "--trajectory"]).arg(&csv));
     assert!(
         stderr.contains("press.csv:2:")
             && stderr.contains("time 1e300 s is beyond the 1e6 s a run may last"),
@@ -262,17 +248,15 @@ fn a_bad_series_period_or_folder_fails_with_a_message() {
             "{period}"
         );
     }
-    let out = server()
-        .args([
+    assert!(
+        fail(server().args([
             "run",
             "--seconds",
             "0.1",
             "--export-every",
             "0.05",
             "/no/such/dir/s.pvd",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/dir/s"));
+        ]))
+        .contains("/no/such/dir/s")
+    );
 }

@@ -163,11 +163,7 @@ const SESSION_MEMORY_PER_TET: u64 = 2600;
 /// or SOFA's liver refined three times, 12), so that sessions of large scenes
 /// cannot take more memory than the limit was sized for.
 pub fn session_weight(tets: usize) -> usize {
-    let bytes =
-        SESSION_BASE_MEMORY.saturating_add(SESSION_MEMORY_PER_TET.saturating_mul(tets as u64));
-    usize::try_from(bytes.div_ceil(SESSION_MEMORY))
-        .unwrap_or(usize::MAX)
-        .max(1)
+    scene_memory_in(tets, SESSION_MEMORY)
 }
 
 /// How many replays of the [`REPLAY_MEMORY`] the replay limit is sized by a replay
@@ -175,9 +171,15 @@ pub fn session_weight(tets: usize) -> usize {
 /// and holds what a session of it would ([`session_weight`]'s memory). A replay as
 /// recorded counts as one whatever its scene.
 pub fn replay_weight(tets: usize) -> usize {
+    scene_memory_in(tets, REPLAY_MEMORY)
+}
+
+/// The peak memory of a built scene of `tets` tetrahedra in units of `unit` bytes,
+/// rounded up, at least one.
+fn scene_memory_in(tets: usize, unit: u64) -> usize {
     let bytes =
         SESSION_BASE_MEMORY.saturating_add(SESSION_MEMORY_PER_TET.saturating_mul(tets as u64));
-    usize::try_from(bytes.div_ceil(REPLAY_MEMORY))
+    usize::try_from(bytes.div_ceil(unit))
         .unwrap_or(usize::MAX)
         .max(1)
 }
