@@ -18,7 +18,8 @@ use crate::engine::scene::Scene;
 use crate::recording::Recorder;
 use crate::session::{Closing, Session, SessionConfig, SessionError};
 
-/// A session being started, counted until it is in the map (or failed).
+/// A session being started, counted (as its weight, the second field) until it is
+/// in the map (or failed).
 struct Starting<'a>(&'a AtomicUsize, usize);
 
 impl Drop for Starting<'_> {
@@ -44,8 +45,8 @@ pub struct Registry {
     pub joins: super::join_rate::JoinRate,
     /// Most sessions open at once.
     max_sessions: usize,
-    /// Sessions being started, counted against [`Registry::max_sessions`].
-    /// Sessions starting, each counted as its [`session_weight`].
+    /// Sessions being started, each counted as its [`session_weight`] against
+    /// [`Registry::max_sessions`].
     starting: AtomicUsize,
     /// The tetrahedra of each scene, once a session of it was asked for.
     sizes: Mutex<HashMap<String, usize>>,
@@ -104,27 +105,23 @@ impl Registry {
     /// (the mesh alone, not the model) and remembered: scenes do not change while
     /// the server runs.
     fn tetrahedra_of(&self, name: &str, scene: &Scene) -> Result<usize, Status> {
-        let known = |sizes: &Mutex<HashMap<String, usize>>| {
-            sizes
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .get(name)
-                .copied()
-        };
-        if let Some(tets) = known(&self.sizes) {
+        let known = self.sizes_map().get(name).copied();
+        if let Some(tets) = known {
             return Ok(tets);
         }
+        // Not under the lock: a large mesh takes a second or more to read.
         let tets = tokio::task::block_in_place(|| scene.load_mesh())
             .map_err(|e| {
                 Status::failed_precondition(format!("scene `{name}` does not build: {e}"))
             })?
             .tets
             .len();
-        self.sizes
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(name.to_string(), tets);
+        self.sizes_map().insert(name.to_string(), tets);
         Ok(tets)
+    }
+
+    fn sizes_map(&self) -> MutexGuard<'_, HashMap<String, usize>> {
+        self.sizes.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// The recorders still writing, forgetting the others.

@@ -8,11 +8,12 @@
 //! anyway, no allocation. A surface position beyond ±[`MAX_COORDINATE_M`] halts too:
 //! a scene's mesh is refused unless it lies within that range, so tissue found
 //! beyond it was thrown there by the simulation (a shaft forced through the liver
-//! once flung a vertex 55 km), and frames of it would mean nothing to a trainee. The first fault halts the simulation: the tick's frame is
-//! neither sent nor recorded (its contact events, which carry only the tick and its
-//! time, are already out), a `SIMULATION_HALTED` event says what and when (to the streams and
-//! the recording), `SessionInfo.simulation_error` keeps it, and the thread waits for
-//! the session to close (or idle out) without ticking, so that the recording holds only
+//! once flung a vertex 55 km), and frames of it would mean nothing to a trainee.
+//! The first fault halts the simulation: the tick's frame is neither sent nor
+//! recorded (its contact events, which carry only the tick and its time, are already
+//! out), a `SIMULATION_HALTED` event says what and when (to the streams and the
+//! recording), `SessionInfo.simulation_error` keeps it, and the thread waits for the
+//! session to close (or idle out) without ticking, so that the recording holds only
 //! finite frames and is finished as usual.
 
 use std::sync::atomic::Ordering;
