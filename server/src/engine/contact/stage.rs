@@ -249,16 +249,7 @@ impl ContactStage {
                         self.start[vi] + (self.end[vi] - self.start[vi]) * f
                     };
                 }
-                self.gather(k, surface, &state.x, &to, ins.radius, length, true);
-                if ins.shaft_contact {
-                    ins.report.colliding_edges += stop_colliding_edges(
-                        &mut self.s,
-                        &surface.edges,
-                        &to,
-                        length,
-                        &mut state.x,
-                    );
-                }
+                self.sub_move(k, ins, surface, &to, length, &mut state.x);
                 self.press(ins, surface, &from, &to, &mut state.x);
                 push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
                 if i < moves {
@@ -308,16 +299,7 @@ impl ContactStage {
                         // `settle_jumps`): candidates over that sweep, and edges that
                         // crossed the axis on the way stopped where they did not
                         // (§2.3–2.4), as for any motion.
-                        self.gather(k, surface, &state.x, &pose, ins.radius, length, true);
-                        if ins.shaft_contact {
-                            ins.report.colliding_edges += stop_colliding_edges(
-                                &mut self.s,
-                                &surface.edges,
-                                &pose,
-                                length,
-                                &mut state.x,
-                            );
-                        }
+                        self.sub_move(k, ins, surface, &pose, length, &mut state.x);
                     } else {
                         // The settling and the other instruments may have moved
                         // tissue further than the query's margin from where this
@@ -424,6 +406,26 @@ impl ContactStage {
         }
         settle.settle(tangent, imposed.mask(), &self.jumped, &mut state.x);
         true
+    }
+
+    /// A sub-move of instrument `k` ending at `to`, the surface having moved from
+    /// `rel_start` to `x` in the instrument's frame: the candidates over that sweep
+    /// (the broad phase refitted to it), then, with shaft contact, every edge that
+    /// crossed the axis stopped where it did not (§2.3–2.4).
+    fn sub_move(
+        &mut self,
+        k: usize,
+        ins: &mut Instrument,
+        surface: &Surface,
+        to: &InstrumentPose,
+        length: f64,
+        x: &mut [Point3<f64>],
+    ) {
+        self.gather(k, surface, x, to, ins.radius, length, true);
+        if ins.shaft_contact {
+            ins.report.colliding_edges +=
+                stop_colliding_edges(&mut self.s, &surface.edges, to, length, x);
+        }
     }
 
     /// Candidate triangles, edges and vertices for instrument `k`. With `refit`, the
