@@ -31,6 +31,7 @@
 
 use std::sync::Arc;
 
+use laparo_proto::v1;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tonic::Status;
 
@@ -164,6 +165,15 @@ const SESSION_MEMORY_PER_TET: u64 = 2600;
 /// cannot take more memory than the limit was sized for.
 pub fn session_weight(tets: usize) -> usize {
     scene_memory_in(tets, SESSION_MEMORY)
+}
+
+/// The tetrahedra of a scene as described (0 for a description without its
+/// summary): what [`session_weight`] and [`replay_weight`] take.
+pub fn tetrahedra(description: &v1::SceneDescription) -> usize {
+    description
+        .summary
+        .as_ref()
+        .map_or(0, |s| s.tetrahedron_count as usize)
 }
 
 /// How many replays of the [`REPLAY_MEMORY`] the replay limit is sized by a replay

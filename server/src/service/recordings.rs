@@ -50,7 +50,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::{Caller, Role, caller};
-use super::capacity::replay_weight;
+use super::capacity::{replay_weight, tetrahedra};
 use super::read_status::read_status;
 use super::registry::Registry;
 use super::replay::{ReadRecorded, ReadResimulated, feed, pace};
@@ -320,11 +320,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
         };
         if playback == Playback::Resimulate {
             // Re-simulating builds the recorded scene: a large one counts as several.
-            let tets = opened
-                .scene
-                .summary
-                .as_ref()
-                .map_or(0, |s| s.tetrahedron_count as usize);
+            let tets = tetrahedra(&opened.scene);
             let more = replay_weight(tets) - 1;
             self.registry.replays.take_more(&mut slot, more, tets)?;
         }

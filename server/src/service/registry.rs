@@ -11,7 +11,7 @@ use tokio::sync::watch;
 use tonic::Status;
 
 use super::capacity::{
-    Capacity, ReplaySlots, session_weight, too_large_a_session, too_many_sessions,
+    Capacity, ReplaySlots, session_weight, tetrahedra, too_large_a_session, too_many_sessions,
 };
 use super::catalog::SceneCatalog;
 use crate::engine::scene::Scene;
@@ -253,14 +253,7 @@ impl Registry {
 
 /// The open sessions, each counted as its scene's [`session_weight`].
 fn open_weight(map: &BTreeMap<String, Arc<Session>>) -> usize {
-    map.values().map(|s| session_weight(tetrahedra(s))).sum()
-}
-
-/// The tetrahedra of a session's scene as built.
-fn tetrahedra(session: &Session) -> usize {
-    session
-        .description
-        .summary
-        .as_ref()
-        .map_or(0, |s| s.tetrahedron_count as usize)
+    map.values()
+        .map(|s| session_weight(tetrahedra(&s.description)))
+        .sum()
 }
