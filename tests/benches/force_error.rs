@@ -27,6 +27,7 @@ use laparo_client::gestures::{PROBE_PHASES, PROBE_SECONDS, Probe};
 use laparo_client::haptics::{ForceLoop, ForceLoopConfig, ScriptedDevice};
 use laparo_proto::force::{LocalModel, Plane};
 use laparo_server::engine::contact::closest::closest_point_triangle;
+use laparo_server::engine::contact::contact_normal;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
@@ -254,10 +255,9 @@ struct LetGo {
     apart_for: Option<f64>,
     /// `|T| / N` of the reaction of the one that carried the most, at the tick
     /// before: its part `T` across the instrument's surface against its push `N`
-    /// along the surface's inward normal (the axis on the tip's end and level with
-    /// it, else the radial direction toward the axis). At the scene's friction
-    /// coefficient μ it was sliding on the friction cone. `None` when it did not
-    /// push (`N ≤ 0`).
+    /// onto it, with the contact stage's own normal there (`contact_normal`). At the
+    /// scene's friction coefficient μ it was sliding on the friction cone. `None`
+    /// when it did not push (`N ≤ 0`).
     tangential_over_normal: Option<f64>,
 }
 
@@ -343,24 +343,22 @@ impl LetGoWatch {
             return;
         };
         let last = std::mem::take(&mut self.held);
-        let z = pose.axis.into_inner();
+        let (length, radius) = (ins.active_length(), ins.radius);
         for (&v, &reaction) in ins.held.iter().zip(&ins.report.held_reactions) {
-            let apart = nearest_approach(sim, v, &pose.tip) > APART * ins.radius;
+            let apart = nearest_approach(sim, v, &pose.tip) > APART * radius;
             let before = last.iter().find(|w| w.v == v).and_then(|w| w.apart_since);
-            // The surface's inward normal at the vertex (the tissue pushes along it).
-            let d = sim.state.x[v as usize] - pose.tip;
-            let inward = if d.dot(&z) <= ins.radius {
-                z
-            } else {
-                (d.dot(&z) * z - d).try_normalize(0.0).unwrap_or(z)
-            };
-            let normal = reaction.dot(&inward);
+            // The instrument's outward normal `m` at the vertex, as the stage takes it
+            // for Coulomb's law: the tissue pushes with `N = −reaction·m`.
+            let x = sim.state.x[v as usize];
+            let ratio = contact_normal(&x, &pose, length, radius, ins.tip_contact)
+                .map(|(m, _)| (m, -reaction.dot(&m)))
+                .filter(|&(_, normal)| normal > 0.0)
+                .map(|(m, normal)| (reaction + m * normal).norm() / normal);
             self.held.push(WatchedVertex {
                 v,
                 reaction,
                 apart_since: apart.then(|| before.unwrap_or(t)),
-                tangential_over_normal: (normal > 0.0)
-                    .then(|| (reaction - inward * normal).norm() / normal),
+                tangential_over_normal: ratio,
             });
         }
         self.before = ins.report.reaction;

@@ -136,7 +136,7 @@ pub(super) fn stays_held(
 /// shaft. Those touch no part of the shaft; taking the radial direction for them
 /// made a withdrawal along the axis look like a slide along the shaft, and they
 /// crept toward the tip a few hundred microns a tick, held for half a second.
-pub(super) fn contact_normal(
+pub fn contact_normal(
     x: &Point3<f64>,
     pose: &InstrumentPose,
     length: f64,

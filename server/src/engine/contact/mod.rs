@@ -61,6 +61,7 @@ pub mod stage;
 mod tip;
 
 pub use crossing::{Crossing, CrossingKind, EdgeEnd, MovingEdge, closer_to_axis, edge_crossing};
+pub use hold::contact_normal;
 pub use instrument::{ContactReport, Instrument, NearestSurface, TipContact};
 pub use pose::{InstrumentPose, rigid_motion};
 pub use scratch::ContactStats;
