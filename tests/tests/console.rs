@@ -57,7 +57,7 @@ async fn the_console_works_in_a_real_browser() {
     if let Some(what) = missing(&web) {
         if std::env::var_os("CI").is_some() {
             panic!(
-                "browser tests cannot run: {what}; .ci/run installs chromium and runs npm ci in web/"
+                "browser tests cannot run: {what}; .ci/run installs chromium and the packages of web/"
             );
         }
         println!("skipped: the console's browser tests: {what}");
