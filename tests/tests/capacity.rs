@@ -278,7 +278,7 @@ async fn a_resimulated_burst_before_the_start_offset_stops_after_a_few_ticks() {
         .count();
     assert!(ticks > 3 * BURST_TICKS, "{ticks} ticks recorded");
     // An offset past the recording's end: every burst but the last sends nothing.
-    let mut reader = ReadResimulated::new(std::sync::Arc::new(recording), name, 1e3);
+    let mut reader = ReadResimulated::new(std::sync::Arc::new(recording), name, 1e3, None);
     let mut bursts = 0;
     loop {
         let mut out = Vec::new();

@@ -74,7 +74,8 @@ pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderError, RecorderStats, Report};
 pub use recover::{RecoverError, Recovery, recover};
 pub use resim::{
-    ResimError, ResimReport, Resimulation, Resimulator, Stepped, resimulate, resimulate_as,
+    MeshFiles, ResimError, ResimReport, Resimulation, Resimulator, Stepped, resimulate,
+    resimulate_as,
 };
 pub use summary::{InstrumentSummary, RecordingSummary, summarize};
 pub use writer::{McapSink, SessionHeader};

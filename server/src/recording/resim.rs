@@ -62,8 +62,32 @@ pub enum ResimError {
     UnknownInstrument { tick: u64, name: String },
     #[error("tick {tick}: instrument `{name}` has a non-finite recorded pose")]
     BadPose { tick: u64, name: String },
+    #[error(
+        "its mesh is a file, and this server offers no scene directory to read one \
+         from: it re-simulates only scenes on the meshes built into it"
+    )]
+    MeshNotServed,
     #[error("the recording's ticks go backwards: tick {tick} after tick {after}")]
     OutOfOrder { tick: u64, after: u64 },
+    #[error(
+        "tick {tick} is recorded at {at_s} s, where the scene's step of {dt_s} s puts \
+         tick {expected:.0}: the file's ticks and times disagree"
+    )]
+    TickTime {
+        tick: u64,
+        at_s: f64,
+        dt_s: f64,
+        expected: f64,
+    },
+}
+
+/// How far, in ticks, a recorded frame's tick may lie from its time over the
+/// scene's step, `1 + 10⁻⁶ · tick`: a session's time is the sum of its steps, whose
+/// round-off after `n` ticks is below `n² ε / 2` ticks (half a tick after 10⁸ ticks,
+/// 19 days at 60 Hz). A tick further from its time is a damaged or forged file:
+/// stepped to, a tick of 10⁶ among a few seconds of frames ran for minutes.
+fn tick_slack(tick: u64) -> f64 {
+    1.0 + 1e-6 * tick as f64
 }
 
 /// What a re-simulation found.
@@ -106,24 +130,49 @@ pub struct Resimulator {
     pub sim: Simulation,
 }
 
+/// Where a re-simulated scene's mesh file may come from.
+#[derive(Clone, Copy, Debug)]
+pub enum MeshFiles<'a> {
+    /// A re-simulation on the operator's own machine: relative paths resolve against
+    /// the folder given, else the one the recording names; any file may be read.
+    Local(Option<&'a Path>),
+    /// A server's: a recording's scene is the file's word, so its mesh is read only
+    /// inside the server's own scene directory, relative paths resolving against it
+    /// (as the scenes it offers read theirs); without one, only the meshes embedded in
+    /// the binary. Otherwise a forged recording naming `/etc/passwd` as its mesh had
+    /// the server read it and quote its first line back.
+    Served(Option<&'a Path>),
+}
+
 impl Resimulator {
-    /// Builds the scene the recording names. Its relative paths resolve against
-    /// `scene_dir` if given, else against the folder the server recorded; the built
+    /// Builds the scene the recording names, its mesh from where `meshes` allows
+    /// (see [`MeshFiles`]); the built
     /// rest surface must be the recorded one to the bit (`rest`, f32 triples), so a
     /// moved or edited mesh is an error rather than a meaningless deviation.
     pub fn new(
         meta: &RecordingMeta,
         rest: &[f32],
-        scene_dir: Option<&Path>,
+        meshes: MeshFiles<'_>,
     ) -> Result<Self, ResimError> {
-        let dir: Option<PathBuf> = scene_dir
-            .map(Path::to_path_buf)
-            .or_else(|| meta.scene_dir.clone());
+        let (dir, root): (Option<PathBuf>, Option<&Path>) = match meshes {
+            MeshFiles::Local(dir) => (
+                dir.map(Path::to_path_buf)
+                    .or_else(|| meta.scene_dir.clone()),
+                None,
+            ),
+            MeshFiles::Served(dir) => (dir.map(Path::to_path_buf), dir),
+        };
         let hint = match &dir {
             Some(d) => format!(" (its mesh was looked for from {})", d.display()),
             None => String::new(),
         };
-        let scene = Scene::parse(&meta.scene_toml, &meta.scene, dir.as_deref())?;
+        let mut scene = Scene::parse(&meta.scene_toml, &meta.scene, dir.as_deref())?;
+        if let MeshFiles::Served(served) = meshes {
+            if served.is_none() && !scene.mesh.file.starts_with("builtin:") {
+                return Err(ResimError::MeshNotServed);
+            }
+            scene.mesh_root = root.map(Path::to_path_buf);
+        }
         let sim = scene.build()?;
         let built = surface_positions(&sim);
         if built.len() != rest.len() {
@@ -234,13 +283,13 @@ pub fn resimulate_as(
     mut progress: impl FnMut(u64),
 ) -> Result<ResimReport, ResimError> {
     let started = Instant::now();
-    let mut run = Resimulation::new(recording, meta, scene_dir)?;
+    let mut run = Resimulation::new(recording, meta, MeshFiles::Local(scene_dir))?;
     let mut report = ResimReport::default();
     for m in recording.messages() {
         let Recorded::Surface(surface) = m?.message else {
             continue;
         };
-        run.run_to(surface.tick, |stepped| {
+        run.run_to(surface.tick, surface.sim_time_s, |stepped| {
             report.steps += 1;
             if stepped.recorded.is_empty() {
                 report.missing_ticks += 1;
@@ -281,19 +330,20 @@ pub struct Stepped<'a> {
 }
 
 impl Resimulation {
-    /// Builds the scene `meta` describes against `recording`'s rest surface (see
-    /// [`Resimulator::new`]) and gathers its recorded states.
+    /// Builds the scene `meta` describes against `recording`'s rest surface, its
+    /// mesh from where `meshes` allows (see [`Resimulator::new`]), and gathers its
+    /// recorded states.
     pub fn new(
         recording: &Recording,
         meta: &RecordingMeta,
-        scene_dir: Option<&Path>,
+        meshes: MeshFiles<'_>,
     ) -> Result<Self, ResimError> {
         let rest = recording
             .scene()?
             .rest_surface
             .map(|s| s.positions)
             .unwrap_or_default();
-        let resim = Resimulator::new(meta, &rest, scene_dir)?;
+        let resim = Resimulator::new(meta, &rest, meshes)?;
         let mut states: BTreeMap<u64, Vec<v1::InstrumentState>> = BTreeMap::new();
         for s in recording.instrument_states()? {
             states.entry(s.message.tick).or_default().push(s.message);
@@ -310,16 +360,30 @@ impl Resimulation {
         &self.resim.sim
     }
 
-    /// Steps up to and including tick `tick`, each step with the poses recorded for
-    /// it; a tick the recorder lost (no states) holds the previous poses. `each`
-    /// sees every step's outputs ([`Stepped`]), and stops the run by answering
-    /// `false`, which this then returns. A tick at or before the current one is an
-    /// error: the file's ticks go backwards.
+    /// Steps up to and including tick `tick`, recorded at `at_s` s, each step with
+    /// the poses recorded for it; a tick the recorder lost (no states) holds the
+    /// previous poses. `each` sees every step's outputs ([`Stepped`]), and stops the
+    /// run by answering `false`, which this then returns (calling again with the same
+    /// tick goes on). A tick at or before the current one is an error (the file's
+    /// ticks go backwards), and so is one that its time does not put within
+    /// [`tick_slack`] of it.
     pub fn run_to(
         &mut self,
         tick: u64,
+        at_s: f64,
         mut each: impl FnMut(Stepped<'_>) -> bool,
     ) -> Result<bool, ResimError> {
+        let dt_s = self.resim.sim.dt;
+        let expected = at_s / dt_s;
+        let off = (tick as f64 - expected).abs();
+        if off.is_nan() || off > tick_slack(tick) {
+            return Err(ResimError::TickTime {
+                tick,
+                at_s,
+                dt_s,
+                expected,
+            });
+        }
         if tick <= self.resim.sim.tick {
             return Err(ResimError::OutOfOrder {
                 tick,

@@ -24,6 +24,9 @@ pub enum CatalogError {
 #[derive(Debug, Default)]
 pub struct SceneCatalog {
     pub scenes: BTreeMap<String, Scene>,
+    /// The directory the scenes were read from (`--scene-dir`), if any: the only
+    /// place a re-simulated recording's mesh may be read from.
+    pub dir: Option<PathBuf>,
     /// Files of the directory that are not offered, and why: they do not read or
     /// parse (regular files of at most `MAX_SCENE_BYTES`, inside the directory), or
     /// repeat a name already offered. `ListScenes` reports them beside the scenes.
@@ -69,6 +72,7 @@ impl SceneCatalog {
         let Some(dir) = dir else {
             return Ok(catalog);
         };
+        catalog.dir = Some(dir.to_path_buf());
         let entries = std::fs::read_dir(dir).map_err(|source| CatalogError::ReadDir {
             dir: dir.to_path_buf(),
             source,

@@ -333,13 +333,15 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let (feed_tx, feed_rx) = mpsc::channel(READ_AHEAD);
         let recording = Arc::new(opened.recording);
         let reading = slot.clone();
+        let scene_dir = self.registry.catalog.dir.clone();
         match playback {
             Playback::Recorded => tokio::spawn(async move {
                 feed(ReadRecorded::new(recording, name, offset), feed_tx).await;
                 drop(reading);
             }),
             Playback::Resimulate => tokio::spawn(async move {
-                feed(ReadResimulated::new(recording, name, offset), feed_tx).await;
+                let reader = ReadResimulated::new(recording, name, offset, scene_dir);
+                feed(reader, feed_tx).await;
                 drop(reading);
             }),
         };

@@ -27,7 +27,7 @@ use tonic::Status;
 use super::read_status::read_status;
 use super::stream::{Item, Wrap};
 use crate::recording::reader::Stamped;
-use crate::recording::{ReadError, Recorded, Recording, ResimError, Resimulation};
+use crate::recording::{MeshFiles, ReadError, Recorded, Recording, ResimError, Resimulation};
 use crate::session::closing::closed;
 
 /// A message to send at `at_s` of simulated time after the replay's start offset.
@@ -64,7 +64,8 @@ impl Feed<'_> {
 pub const BURST_MESSAGES: usize = 16;
 
 /// Recorded messages a burst reads at most, sent or not, and ticks a re-simulated
-/// burst steps at most. Before a start offset nothing is sent, so without these a
+/// burst steps at most, recorded or stepped through where the recorder lost frames
+/// (see `step_to`). Before a start offset nothing is sent, so without these a
 /// first burst read (or re-simulated) everything up to the offset on one blocking
 /// thread, deaf to a client that had gone: a re-simulated replay of a large scene
 /// cancelled at once went on for 40 s. Between bursts [`feed`] looks whether the
@@ -232,24 +233,80 @@ pub struct ReadResimulated {
     messages: Messages,
     gate: FromOffset,
     name: String,
+    /// The server's scene directory, where the recorded scene's mesh is read
+    /// ([`MeshFiles::Served`]).
+    scene_dir: Option<std::path::PathBuf>,
+    /// The recorded tick (and its time) the run is stepping to: a burst that fills
+    /// on the way leaves the rest of the way to the next.
+    pending: Option<(u64, f64)>,
+}
+
+/// Steps `run` toward recorded tick `tick` (at `at_s` s), sending each step's
+/// messages through `gate` in the order a session writes a tick (its contact
+/// events, then the surface and every instrument's state), until it is reached
+/// (`true`) or `ticks`, the burst's steps so far, reaches [`BURST_TICKS`]
+/// (`false`): a recording whose frames lie many ticks apart (a recorder that fell
+/// behind) is stepped a burst at a time like any other, deaf to no client and
+/// holding a few frames.
+fn step_to(
+    run: &mut Resimulation,
+    tick: u64,
+    at_s: f64,
+    gate: &mut FromOffset,
+    out: &mut Feed<'_>,
+    ticks: &mut usize,
+) -> Result<bool, ResimError> {
+    run.run_to(tick, at_s, |stepped| {
+        let frame = stepped.frame;
+        let t = frame.sim_time;
+        let surface = v1::SurfaceFrame {
+            tick: frame.tick,
+            sim_time_s: frame.sim_time,
+            positions: frame.surface,
+        };
+        let items = (stepped.events.into_iter().map(Item::Event))
+            .chain([Item::Surface(surface)])
+            .chain(frame.instruments.into_iter().map(Item::State));
+        for item in items {
+            gate.pass(t, item, out);
+        }
+        *ticks += 1;
+        *ticks < BURST_TICKS
+    })?;
+    Ok(run.sim().tick >= tick)
 }
 
 impl ReadResimulated {
-    pub fn new(recording: Arc<Recording>, name: String, offset: f64) -> Self {
+    /// Re-simulates `recording` (served as `name`) from `offset` s, its scene's
+    /// mesh read inside `scene_dir`, the server's scene directory, or, without
+    /// one, from the meshes built in ([`MeshFiles::Served`]).
+    pub fn new(
+        recording: Arc<Recording>,
+        name: String,
+        offset: f64,
+        scene_dir: Option<std::path::PathBuf>,
+    ) -> Self {
         ReadResimulated {
             messages: Box::new(recording.clone().into_messages()),
             recording,
             run: None,
             gate: FromOffset::new(offset),
             name,
+            scene_dir,
+            pending: None,
         }
     }
 
-    /// Why the recording cannot be re-simulated, with the recorded scene's folder
-    /// (a server path, none of the client's business) said as `<scene directory>`.
+    /// Why the recording cannot be re-simulated, with the server's scene directory
+    /// and the recorded one (server paths, none of the client's business) said as
+    /// `<scene directory>`.
     fn cannot(&self, e: ResimError) -> Status {
         let mut why = e.to_string();
-        if let Some(dir) = &self.recording.meta().scene_dir {
+        let dirs = [
+            self.scene_dir.as_ref(),
+            self.recording.meta().scene_dir.as_ref(),
+        ];
+        for dir in dirs.into_iter().flatten() {
             why = why.replace(&*dir.to_string_lossy(), "<scene directory>");
         }
         Status::failed_precondition(format!("`{}` cannot be re-simulated: {why}", self.name))
@@ -261,7 +318,11 @@ impl Reader for ReadResimulated {
         let mut out = Feed { out: burst };
         let mut run = match self.run.take() {
             Some(run) => run,
-            None => match Resimulation::new(&self.recording, self.recording.meta(), None) {
+            None => match Resimulation::new(
+                &self.recording,
+                self.recording.meta(),
+                MeshFiles::Served(self.scene_dir.as_deref()),
+            ) {
                 Ok(run) => run,
                 Err(e) => {
                     out.fail(self.cannot(e));
@@ -270,7 +331,20 @@ impl Reader for ReadResimulated {
             },
         };
         let (mut reads, mut ticks) = (0, 0);
-        while out.out.len() < BURST_MESSAGES && reads < BURST_READS && ticks < BURST_TICKS {
+        loop {
+            if let Some((tick, at_s)) = self.pending {
+                match step_to(&mut run, tick, at_s, &mut self.gate, &mut out, &mut ticks) {
+                    Ok(true) => self.pending = None,
+                    Ok(false) => break,
+                    Err(e) => {
+                        out.fail(self.cannot(e));
+                        return false;
+                    }
+                }
+            }
+            if !(out.out.len() < BURST_MESSAGES && reads < BURST_READS && ticks < BURST_TICKS) {
+                break;
+            }
             reads += 1;
             let Some(m) = self.messages.next() else {
                 self.gate.flush(&mut out);
@@ -283,37 +357,12 @@ impl Reader for ReadResimulated {
                     return false;
                 }
             };
-            let tick = match m.message {
+            match m.message {
                 Recorded::Event(e) if !from_physics(&e) => {
                     self.gate.pass(e.sim_time_s, Item::Event(e), &mut out);
-                    continue;
                 }
-                Recorded::Surface(f) => f.tick,
-                _ => continue,
-            };
-            ticks += 1;
-            let gate = &mut self.gate;
-            let sent = run.run_to(tick, |stepped| {
-                // The order a session writes a tick in: its contact events, then the
-                // surface and every instrument's state.
-                let frame = stepped.frame;
-                let t = frame.sim_time;
-                let surface = v1::SurfaceFrame {
-                    tick: frame.tick,
-                    sim_time_s: frame.sim_time,
-                    positions: frame.surface,
-                };
-                let items = (stepped.events.into_iter().map(Item::Event))
-                    .chain([Item::Surface(surface)])
-                    .chain(frame.instruments.into_iter().map(Item::State));
-                for item in items {
-                    gate.pass(t, item, &mut out);
-                }
-                true
-            });
-            if let Err(e) = sent {
-                out.fail(self.cannot(e));
-                return false;
+                Recorded::Surface(f) => self.pending = Some((f.tick, f.sim_time_s)),
+                _ => {}
             }
         }
         self.run = Some(run);

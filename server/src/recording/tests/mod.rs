@@ -101,6 +101,16 @@ fn temp() -> tempfile::TempDir {
 /// Runs `ticks` ticks of the script through a recorder, with the pose of each tick
 /// recorded before it; returns the frames and poses handed over.
 fn record_script(path: &Path, ticks: u64) -> (Vec<Arc<Frame>>, Vec<v1::DevicePose>, SessionHeader) {
+    record_script_with(path, ticks, Some)
+}
+
+/// [`record_script`] with each tick's frame handed over as `keep` makes it: as it
+/// is, altered, or not at all (`None`, a frame the recorder lost).
+fn record_script_with(
+    path: &Path,
+    ticks: u64,
+    mut keep: impl FnMut(Frame) -> Option<Frame>,
+) -> (Vec<Arc<Frame>>, Vec<v1::DevicePose>, SessionHeader) {
     let mut script = Script::new();
     let header = script.header(SystemTime::now());
     let recorder = Recorder::start(path.to_path_buf(), header.clone()).unwrap();
@@ -115,7 +125,10 @@ fn record_script(path: &Path, ticks: u64) -> (Vec<Arc<Frame>>, Vec<v1::DevicePos
             None
         );
         poses.push(pose);
-        let frame = Arc::new(script.tick(k));
+        let Some(frame) = keep(script.tick(k)) else {
+            continue;
+        };
+        let frame = Arc::new(frame);
         assert_eq!(
             recorder.offer(Item::Frame {
                 frame: frame.clone(),
