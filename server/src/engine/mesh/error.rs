@@ -256,6 +256,27 @@ fn list(ids: &[u64]) -> String {
     parts.join(", ")
 }
 
+/// Most characters of a file's text quoted in a message.
+pub const MAX_QUOTED_CHARS: usize = 60;
+
+/// The text of a file quoted in a message: its first [`MAX_QUOTED_CHARS`]
+/// characters, control characters escaped, with how long it was when that is more.
+/// A message quoted whole lines: a mesh whose first line was 30 MB of one
+/// character made a 30 MB error, which a server put in every scene listing (and
+/// which broke creating a session from it over gRPC), and a file that was not a
+/// mesh had its first line quoted back.
+pub(super) fn excerpt(text: &str) -> String {
+    let mut out: String = text
+        .chars()
+        .take(MAX_QUOTED_CHARS)
+        .flat_map(|c| c.escape_debug())
+        .collect();
+    if text.chars().nth(MAX_QUOTED_CHARS).is_some() {
+        out.push_str(&format!("… ({} bytes)", text.len()));
+    }
+    out
+}
+
 fn found_instead(found: Option<&str>) -> String {
     match found {
         Some(text) => format!(" (found \"{text}\")"),

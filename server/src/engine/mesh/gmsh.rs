@@ -15,7 +15,7 @@ use nalgebra::Point3;
 
 use super::TetMesh;
 use super::assemble::{DeclaredTriangle, RawMesh};
-use super::error::{MeshError, MeshErrorKind, OutOfRange, Syntax};
+use super::error::{MeshError, MeshErrorKind, OutOfRange, Syntax, excerpt};
 
 /// Reads a Gmsh ASCII mesh (version 1 or 2.x) from `text`; `source` names the input
 /// (usually the file name) in error messages.
@@ -234,7 +234,7 @@ impl<'a> Parser<'a> {
                 return Err(self.syntax(
                     n,
                     Syntax::UnexpectedLine {
-                        text: line.to_owned(),
+                        text: excerpt(line),
                     },
                 ));
             }
@@ -252,7 +252,7 @@ impl<'a> Parser<'a> {
                     return Err(self.syntax(
                         n,
                         Syntax::UnexpectedLine {
-                            text: line.to_owned(),
+                            text: excerpt(line),
                         },
                     ));
                 }
@@ -310,7 +310,7 @@ impl<'a> Parser<'a> {
                 n,
                 Syntax::BadNumber {
                     what: "the format version",
-                    text: fields[0].to_owned(),
+                    text: excerpt(fields[0]),
                 },
             )
         })?;
@@ -359,7 +359,7 @@ impl<'a> Parser<'a> {
                 n,
                 Syntax::MissingEnd {
                     end: end.to_owned(),
-                    found: Some(line.to_owned()),
+                    found: Some(excerpt(line)),
                 },
             )),
             None => Err(self.syntax(
@@ -412,7 +412,7 @@ impl<'a> Parser<'a> {
                 n,
                 Syntax::BadNumber {
                     what: "the entry count",
-                    text: first.to_owned(),
+                    text: excerpt(first),
                 },
             )
         })?;
@@ -561,7 +561,7 @@ impl<'a> Parser<'a> {
                     MeshErrorKind::NonFiniteCoordinate {
                         node: id,
                         axis,
-                        text: text.to_owned(),
+                        text: excerpt(text),
                     },
                 ));
             }
@@ -755,7 +755,7 @@ impl<'a> Parser<'a> {
                 n,
                 Syntax::BadNumber {
                     what,
-                    text: text.to_owned(),
+                    text: excerpt(text),
                 },
             )
         })

@@ -339,3 +339,23 @@ fn damaged_files_give_errors_not_panics() {
         }
     }
 }
+
+/// A message quotes at most `MAX_QUOTED_CHARS` characters of the file, control
+/// characters escaped: a first line of a megabyte gives a message of a line, not
+/// of a megabyte, and says how long the line was.
+#[test]
+fn messages_quote_an_excerpt_of_a_long_line() {
+    use crate::engine::mesh::error::MAX_QUOTED_CHARS;
+    let long = format!("x{}\n", "y".repeat(1 << 20));
+    for text in [
+        long.clone(),
+        format!("$NOD\n{long}$ENDNOD\n"),
+        format!("$NOD\n1\n1 0 0 {long}$ENDNOD\n"),
+    ] {
+        let said = fail(&text).to_string();
+        assert!(said.len() < 200 + MAX_QUOTED_CHARS, "{} bytes", said.len());
+        assert!(said.contains(&format!("… ({} bytes)", long.len() - 1)), "{said}");
+    }
+    let said = fail("\u{1b}[2J\n").to_string();
+    assert!(!said.contains('\u{1b}') && said.contains("\\u{1b}[2J"), "{said}");
+}
