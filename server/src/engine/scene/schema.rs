@@ -26,7 +26,7 @@ pub struct Scene {
     #[serde(default)]
     pub fixed: FixedSpec,
     /// Gravity, m/s², in the scene frame; `[0, 0, 0]` turns it off.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "three")]
     pub gravity: [f64; 3],
     #[serde(default)]
     pub mechanics: MechanicsSpec,
@@ -134,11 +134,22 @@ pub struct FixedSpec {
     pub surface_only: bool,
 }
 
+/// A point or vector: an array of exactly three numbers. serde reads `[f64; 3]` as
+/// a tuple of three, and the TOML reader leaves what follows unread:
+/// `gravity = [0.0, -9.81, 0.0, "junk"]` passed as gravity.
+fn three<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    let v: Vec<f64> = Vec::deserialize(d)?;
+    <[f64; 3]>::try_from(v.as_slice())
+        .map_err(|_| serde::de::Error::invalid_length(v.len(), &"an array of 3 numbers"))
+}
+
 /// An axis-aligned box, m.
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoxSpec {
+    #[serde(deserialize_with = "three")]
     pub min: [f64; 3],
+    #[serde(deserialize_with = "three")]
     pub max: [f64; 3],
 }
 
@@ -215,6 +226,7 @@ pub struct InstrumentSpec {
     /// Shaft length l inside the body, m.
     pub length: f64,
     /// Trocar point, m, in the scene frame; torques are taken about it.
+    #[serde(deserialize_with = "three")]
     pub trocar: [f64; 3],
     /// Whether the tip pushes tissue.
     #[serde(default = "yes")]

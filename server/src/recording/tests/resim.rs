@@ -148,9 +148,10 @@ fn a_served_resimulation_reads_no_mesh_outside_the_scene_directory() {
     std::fs::write(&secret, "the secret first line\n").unwrap();
     let mut forged = rec.meta().clone();
     assert!(forged.scene_toml.contains("\"builtin:liver.msh\""));
-    forged.scene_toml = forged
-        .scene_toml
-        .replace("\"builtin:liver.msh\"", &format!("{:?}", secret.display().to_string()));
+    forged.scene_toml = forged.scene_toml.replace(
+        "\"builtin:liver.msh\"",
+        &format!("{:?}", secret.display().to_string()),
+    );
     forged.scene_dir = Some(dir.path().to_path_buf());
 
     let served = |meshes| match Resimulation::new(&rec, &forged, meshes) {

@@ -354,8 +354,14 @@ fn messages_quote_an_excerpt_of_a_long_line() {
     ] {
         let said = fail(&text).to_string();
         assert!(said.len() < 200 + MAX_QUOTED_CHARS, "{} bytes", said.len());
-        assert!(said.contains(&format!("… ({} bytes)", long.len() - 1)), "{said}");
+        assert!(
+            said.contains(&format!("… ({} bytes)", long.len() - 1)),
+            "{said}"
+        );
     }
     let said = fail("\u{1b}[2J\n").to_string();
-    assert!(!said.contains('\u{1b}') && said.contains("\\u{1b}[2J"), "{said}");
+    assert!(
+        !said.contains('\u{1b}') && said.contains("\\u{1b}[2J"),
+        "{said}"
+    );
 }

@@ -259,3 +259,37 @@ fn a_refinement_that_would_flatten_a_nearly_flat_tetrahedron_names_mesh_refine()
         "refinement 1 of 1 cannot be simulated: its tetrahedron 1",
     );
 }
+
+/// A point or vector is exactly three numbers: the TOML reader left what followed
+/// the third unread, so `gravity = [0.0, -9.81, 0.0, "junk"]` passed as gravity.
+/// Too few or too many are refused, naming the key.
+#[test]
+fn a_point_of_other_than_three_numbers_is_refused() {
+    let instrument = "[[instruments]]\nname = \"a\"\nradius = 0.005\nlength = 0.3\n";
+    for (text, path) in [
+        (
+            format!("gravity = [0.0, -9.81, 0.0, 1.0]\n{MINIMAL}"),
+            "gravity",
+        ),
+        (format!("gravity = [0.0, -9.81]\n{MINIMAL}"), "gravity"),
+        (
+            format!("{MINIMAL}\n{instrument}trocar = [0.0, 0.0, 0.0, 7.0]\n"),
+            "instruments[0].trocar",
+        ),
+        (
+            format!("{MINIMAL}boxes = [{{ min = [0, 0, 0, 0], max = [1, 1, 1] }}]\n"),
+            "fixed.boxes[0].min",
+        ),
+    ] {
+        match parse(&text) {
+            Err(e @ SceneError::Parse { .. }) => {
+                let said = e.to_string();
+                assert!(said.contains(path) && said.contains("3 numbers"), "{said}");
+            }
+            other => panic!("{text}: expected a parse error naming {path}, got {other:?}"),
+        }
+    }
+    let good =
+        format!("gravity = [0.0, -9.81, 0.0]\n{MINIMAL}\n{instrument}trocar = [0.0, 0.0, 0.1]\n");
+    assert_eq!(parse(&good).unwrap().gravity, [0.0, -9.81, 0.0]);
+}
