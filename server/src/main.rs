@@ -163,6 +163,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         },
         idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
         cors_origins: args.cors_origins,
+        max_attached: None,
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
     let served = runtime.block_on(async move {

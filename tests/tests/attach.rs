@@ -264,6 +264,81 @@ async fn dropping_the_attach_stream_leaves_the_session() {
 }
 
 /// One HTTP/1.1 request; the response's head, lower-cased.
+/// An Attach refused because the server's attached stations are at their limit
+/// leaves nothing behind: the station used to be opened first (its instrument
+/// claimed, its joining announced) and then refused a handle, and stayed holding
+/// `left` with nobody to leave, until an instructor evicted it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_attach_refused_at_the_limit_leaves_no_station_behind() {
+    let mut tokens = Tokens::default();
+    tokens.insert(
+        ALICE.unwrap(),
+        Caller {
+            name: "alice".into(),
+            role: Role::Trainee,
+            instruments: None,
+        },
+    );
+    tokens.insert(
+        TEACHER.unwrap(),
+        Caller {
+            name: "teacher".into(),
+            role: Role::Instructor,
+            instruments: None,
+        },
+    );
+    let server = TestServer::start(ServeConfig {
+        tokens: Some(tokens),
+        max_attached: Some(1),
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), TEACHER)
+        .await
+        .unwrap()
+        .session_id;
+    // An instructor watching through Attach takes the one handle.
+    let watching = station(&ch)
+        .attach(with_token(join_request(&session, &[]), TEACHER))
+        .await
+        .unwrap();
+    let refused = attach(&ch, ALICE, &session).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    assert!(refused.message().contains("MAX_ATTACHED"), "{refused:?}");
+    assert_eq!(holder(&ch, &session).await, None);
+    let stations = v1::sessions_client::SessionsClient::new(ch.clone())
+        .get_session(with_token(
+            v1::GetSessionRequest {
+                session_id: session.clone(),
+            },
+            TEACHER,
+        ))
+        .await
+        .unwrap()
+        .into_inner()
+        .stations
+        .len();
+    assert_eq!(stations, 1, "only the watching station");
+    // With the handle given back, the same trainee attaches and holds `left`.
+    drop(watching);
+    let mut taken = None;
+    for _ in 0..50 {
+        match attach(&ch, ALICE, &session).await {
+            Ok(a) => {
+                taken = Some(a);
+                break;
+            }
+            Err(e) if e.code() == Code::ResourceExhausted => {
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    assert!(taken.is_some(), "the handle never came back");
+    assert!(holder(&ch, &session).await.is_some());
+}
+
 async fn http(server: &TestServer, request: &str) -> String {
     let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
     s.write_all(request.as_bytes()).await.unwrap();

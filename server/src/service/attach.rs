@@ -35,10 +35,17 @@ pub const MAX_ATTACHED: usize = 4096;
 /// The stream Attach answers with.
 pub type AttachStream = Pin<Box<dyn Stream<Item = Result<v1::AttachMessage, Status>> + Send>>;
 
-/// The stations opened by Attach, by handle.
-#[derive(Default)]
+/// The stations opened by Attach, by handle, at most `limit` of them
+/// ([`MAX_ATTACHED`] unless the server is configured otherwise).
 pub struct Attachments {
     by_handle: Mutex<HashMap<String, Attachment>>,
+    limit: usize,
+}
+
+impl Default for Attachments {
+    fn default() -> Self {
+        Attachments::with_limit(MAX_ATTACHED)
+    }
 }
 
 struct Attachment {
@@ -47,6 +54,14 @@ struct Attachment {
 }
 
 impl Attachments {
+    /// No station attached yet; at most `limit` at once.
+    pub fn with_limit(limit: usize) -> Self {
+        Attachments {
+            by_handle: Mutex::default(),
+            limit,
+        }
+    }
+
     /// A new handle for `caller`'s station and the queue its messages arrive on.
     pub fn attach(
         &self,
@@ -55,9 +70,10 @@ impl Attachments {
         let handle = new_handle()?;
         let (queue, rx) = mpsc::channel(QUEUE);
         let mut map = self.lock();
-        if map.len() >= MAX_ATTACHED {
+        if map.len() >= self.limit {
             return Err(Status::resource_exhausted(format!(
-                "{MAX_ATTACHED} stations are attached already (server limit MAX_ATTACHED)"
+                "{} stations are attached already (server limit MAX_ATTACHED)",
+                self.limit
             )));
         }
         map.insert(handle.clone(), Attachment { caller, queue });

@@ -100,6 +100,9 @@ pub struct ServeConfig {
     /// Origins whose pages may call the server (CORS); empty: none but the
     /// server's own (the console it serves).
     pub cors_origins: Vec<String>,
+    /// Stations attached through `Station.Attach` at once; `None`:
+    /// [`attach::MAX_ATTACHED`].
+    pub max_attached: Option<usize>,
 }
 
 #[derive(Debug, Error)]
@@ -190,7 +193,9 @@ pub async fn serve(
             registry: registry.clone(),
             limits: config.pose_limits,
             timeout: config.station_timeout,
-            attachments: Default::default(),
+            attachments: Arc::new(attach::Attachments::with_limit(
+                config.max_attached.unwrap_or(attach::MAX_ATTACHED)
+            )),
         }
     );
     let observe = service!(

@@ -128,8 +128,17 @@ impl v1::station_server::Station for StationService {
     ) -> Result<Response<Self::AttachStream>, Status> {
         let caller = caller(&request)?;
         self.admit(&caller, &request)?;
-        let opened = self.open(&caller, request.get_ref())?;
-        let (handle, poses) = self.attachments.attach(caller)?;
+        // The handle is taken before the station opens: a station opened (its
+        // instruments claimed, its joining announced) and then refused a handle
+        // stayed in the roster holding them, with nobody to leave.
+        let (handle, poses) = self.attachments.attach(caller.clone())?;
+        let opened = match self.open(&caller, request.get_ref()) {
+            Ok(opened) => opened,
+            Err(refused) => {
+                self.attachments.detach(&handle);
+                return Err(refused);
+            }
+        };
         let attachments = self.attachments.clone();
         let ended = handle.clone();
         let outbound = opened.run(Inbound::Attach(poses), self.reading(), move || {
