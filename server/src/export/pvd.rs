@@ -2,11 +2,19 @@
 //!
 //! `OUT.pvd` lists one `<DataSet timestep="t" file="OUT_000042.vtu"/>` per frame, the
 //! VTU files beside it, named after it, paths relative to it so that the folder can
-//! be moved. The `.pvd` is rewritten after every frame (it is small), so a run that
-//! stops early still leaves a series ParaView opens.
+//! be moved.
+//!
+//! After every frame the `.pvd` on disk is a complete file listing every frame
+//! written, so a run that stops early (killed, or the machine down) leaves a series
+//! ParaView opens. Each frame's VTU is written and synced first; then the index is
+//! updated in place: the frame's `DataSet` line and the closing tags are written in
+//! one write over the previous closing tags (the file stays open between frames),
+//! and the index is synced (`fdatasync`). A frame thus writes the same few hundred
+//! bytes to the index whatever the number of frames before it, and a series of
+//! [`MAX_FRAMES`] writes about 10 MB of index, not the index again every frame.
 
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use super::vtu::write_vtu;
@@ -15,6 +23,12 @@ use crate::engine::simulation::Simulation;
 /// Most frames one series may hold: a bound on the files a run writes.
 pub const MAX_FRAMES: u64 = 100_000;
 
+/// The index up to its first `DataSet`.
+const HEAD: &str = "<?xml version=\"1.0\"?>\n\
+    <VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n  <Collection>\n";
+/// The index after its last `DataSet`.
+const TAIL: &str = "  </Collection>\n</VTKFile>\n";
+
 /// A time series being written.
 #[derive(Debug)]
 pub struct PvdSeries {
@@ -22,6 +36,10 @@ pub struct PvdSeries {
     stem: String,
     /// `(simulated time, VTU file name)` of each frame written.
     frames: Vec<(f64, String)>,
+    /// The index, open once the first frame is written.
+    index: Option<File>,
+    /// Where the index's closing tags start: the next frame's line goes there.
+    tail_at: u64,
 }
 
 impl PvdSeries {
@@ -35,6 +53,8 @@ impl PvdSeries {
             path: path.to_path_buf(),
             stem,
             frames: Vec::new(),
+            index: None,
+            tail_at: 0,
         }
     }
 
@@ -55,7 +75,7 @@ impl PvdSeries {
     }
 
     /// Writes the simulation's current state as the next frame, at its simulated
-    /// time, and rewrites the `.pvd`.
+    /// time, and adds it to the `.pvd` (created, or emptied, at the first frame).
     pub fn write_frame(&mut self, sim: &Simulation) -> io::Result<()> {
         if self.frames.len() as u64 >= MAX_FRAMES {
             return Err(io::Error::other(format!(
@@ -65,28 +85,34 @@ impl PvdSeries {
         let name = format!("{}_{:06}.vtu", self.stem, self.frames.len());
         let dir = self.path.parent().unwrap_or(Path::new(""));
         write_vtu(sim, &dir.join(&name))?;
+        self.append_to_index(sim.time, &name)?;
         self.frames.push((sim.time, name));
-        self.write_index()
+        Ok(())
     }
 
-    fn write_index(&self) -> io::Result<()> {
-        let mut w = BufWriter::new(File::create(&self.path)?);
-        writeln!(w, r#"<?xml version="1.0"?>"#)?;
-        writeln!(
-            w,
-            r#"<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">"#
-        )?;
-        writeln!(w, "  <Collection>")?;
-        for (t, file) in &self.frames {
-            writeln!(
-                w,
-                r#"    <DataSet timestep="{t:e}" group="" part="0" file="{}"/>"#,
-                xml_escape(file)
-            )?;
-        }
-        writeln!(w, "  </Collection>\n</VTKFile>")?;
-        w.flush()?;
-        w.into_inner().map_err(|e| e.into_error())?.sync_all()
+    /// Writes the line of a frame at `t` in `file` over the index's closing tags,
+    /// and the closing tags after it, in one write; then syncs the index.
+    fn append_to_index(&mut self, t: f64, file: &str) -> io::Result<()> {
+        let line = format!(
+            "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{}\"/>\n",
+            xml_escape(file)
+        );
+        let mut update = String::with_capacity(HEAD.len() + line.len() + TAIL.len());
+        let index = match &mut self.index {
+            Some(index) => index,
+            None => {
+                update.push_str(HEAD);
+                self.tail_at = 0;
+                self.index.insert(File::create(&self.path)?)
+            }
+        };
+        update.push_str(&line);
+        update.push_str(TAIL);
+        index.seek(SeekFrom::Start(self.tail_at))?;
+        index.write_all(update.as_bytes())?;
+        index.sync_data()?;
+        self.tail_at += (update.len() - TAIL.len()) as u64;
+        Ok(())
     }
 }
 
@@ -97,3 +123,6 @@ fn xml_escape(s: &str) -> String {
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests;
