@@ -5,17 +5,29 @@
 //! instrument's name as the scene declares it, tip `P` in m, axis `Z` (from the tip
 //! toward the handle; any non-zero length, normalised on reading). A first line that
 //! does not start with a number is a header; blank lines and lines starting with `#`
-//! are skipped. Keyframes of one instrument must have increasing times.
+//! are skipped. Keyframes of one instrument must have increasing times. A file
+//! names at most [`MAX_INSTRUMENTS`] instruments (as many as a scene may have) and
+//! is at most [`MAX_TRAJECTORY_BYTES`] long; it is read as scene and mesh files are
+//! ([`read_bounded`]: a regular file only, so a FIFO or a device is refused rather
+//! than read for ever).
 //!
 //! Between keyframes the tip moves linearly and the axis turns at constant angular
 //! speed (spherical interpolation). Before an instrument's first keyframe it is out of
 //! the body; after its last it holds its last pose.
 
+use std::collections::HashMap;
 use std::path::Path;
 
 use nalgebra::{Point3, Unit, Vector3};
 
+use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::contact::pose::InstrumentPose;
+use crate::engine::scene::read_bounded;
+
+/// Largest trajectory file read, bytes: 16 MiB, about 250,000 keyframes (a keyframe
+/// a millisecond for four instruments over a minute), held in memory as about as
+/// many bytes again.
+pub const MAX_TRAJECTORY_BYTES: u64 = 16 << 20;
 
 /// The largest coordinate accepted, m: anything farther is not in an operating room.
 const ABSURD_DISTANCE: f64 = 100.0;
@@ -34,6 +46,9 @@ pub struct TrajectoryError {
 #[derive(Clone, Debug)]
 pub struct Track {
     pub instrument: String,
+    /// The line of its first keyframe (1-based), which errors about the instrument
+    /// name.
+    pub line: usize,
     pub keys: Vec<(f64, InstrumentPose)>,
 }
 
@@ -47,11 +62,14 @@ impl Trajectory {
     /// Reads a trajectory file.
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| TrajectoryError {
+        let err = |message: String| TrajectoryError {
             source_name: name.clone(),
             line: 0,
-            message: format!("cannot read: {e}"),
-        })?;
+            message,
+        };
+        let bytes =
+            read_bounded(path, None, MAX_TRAJECTORY_BYTES).map_err(|e| err(e.to_string()))?;
+        let text = String::from_utf8(bytes).map_err(|e| err(format!("not UTF-8 text: {e}")))?;
         Self::parse(&text, &name)
     }
 
@@ -63,6 +81,8 @@ impl Trajectory {
             message,
         };
         let mut traj = Trajectory::default();
+        // Track index by instrument name.
+        let mut by_name: HashMap<&str, usize> = HashMap::new();
         let mut first = true;
         for (k, raw) in text.lines().enumerate() {
             let line = k + 1;
@@ -117,18 +137,28 @@ impl Trajectory {
                     format!("tip {tip} is more than {ABSURD_DISTANCE} m from the origin"),
                 ));
             }
-            let axis = Vector3::new(num[4], num[5], num[6]);
-            let axis = Unit::try_new(axis, 1e-12)
+            let axis = unit_axis(Vector3::new(num[4], num[5], num[6]))
                 .ok_or_else(|| err(line, "the axis is zero".to_string()))?;
             let name = fields[1];
             if name.is_empty() {
                 return Err(err(line, "the instrument name is empty".to_string()));
             }
-            let track = match traj.tracks.iter_mut().position(|tr| tr.instrument == name) {
-                Some(i) => &mut traj.tracks[i],
+            let track = match by_name.get(name) {
+                Some(&i) => &mut traj.tracks[i],
                 None => {
+                    if traj.tracks.len() >= MAX_INSTRUMENTS {
+                        return Err(err(
+                            line,
+                            format!(
+                                "instrument `{name}` is one more than the {MAX_INSTRUMENTS} \
+                                 a scene may have"
+                            ),
+                        ));
+                    }
+                    by_name.insert(name, traj.tracks.len());
                     traj.tracks.push(Track {
                         instrument: name.to_string(),
+                        line,
                         keys: Vec::new(),
                     });
                     traj.tracks.last_mut().unwrap()
@@ -162,7 +192,8 @@ impl Trajectory {
     }
 
     /// For each of the scene's instruments, its track (if the file has one). A track
-    /// naming an instrument the scene does not declare is an error.
+    /// naming an instrument the scene does not declare is an error naming the line
+    /// of its first keyframe.
     pub fn match_instruments(
         &self,
         names: &[&str],
@@ -172,7 +203,7 @@ impl Trajectory {
             if !names.contains(&track.instrument.as_str()) {
                 return Err(TrajectoryError {
                     source_name: source_name.to_string(),
-                    line: 0,
+                    line: track.line,
                     message: format!(
                         "instrument `{}` is not in the scene (it has: {})",
                         track.instrument,
@@ -186,6 +217,18 @@ impl Trajectory {
             .map(|n| self.tracks.iter().position(|t| t.instrument == *n))
             .collect())
     }
+}
+
+/// `v` scaled to unit length, `None` when it is zero. `v` is first divided by its
+/// largest component, so that its squared norm neither overflows (a component above
+/// about 1.3e154) nor underflows to zero (subnormal components): any finite non-zero
+/// axis gives a finite unit vector.
+fn unit_axis(v: Vector3<f64>) -> Option<Unit<Vector3<f64>>> {
+    let largest = v.amax();
+    if largest == 0.0 || !largest.is_finite() {
+        return None;
+    }
+    Some(Unit::new_normalize(v / largest))
 }
 
 impl Track {
@@ -260,6 +303,93 @@ mod tests {
                 .message
                 .contains("no keyframes")
         );
+    }
+
+    #[test]
+    fn an_unknown_instrument_is_named_at_the_line_it_first_appears() {
+        let text = "t,i,x,y,z,ax,ay,az\n0, left, 0, 0, 0.1, 0, 0, 1\n\n\
+            0.5, lift, 0, 0, 0.1, 0, 0, 1\n1, lift, 0, 0, 0.1, 0, 0, 1\n";
+        let e = Trajectory::parse(text, "t.csv")
+            .unwrap()
+            .match_instruments(&["left"], "t.csv")
+            .unwrap_err();
+        assert_eq!(e.line, 4, "{e}");
+        assert!(
+            e.to_string().starts_with("t.csv:4: instrument `lift`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn more_distinct_instruments_than_a_scene_holds_are_refused_at_the_first_extra() {
+        // 40,000 names, each once: refused at the line of the ninth, so that neither
+        // the tracks kept nor the work per line grows with the names in the file.
+        let text: String = (0..40_000)
+            .map(|k| format!("{k}, i{k}, 0, 0, 0, 0, 0, 1\n"))
+            .collect();
+        let e = match Trajectory::parse(&text, "t.csv") {
+            Ok(tr) => panic!("read {} tracks", tr.tracks.len()),
+            Err(e) => e,
+        };
+        assert_eq!(e.line, MAX_INSTRUMENTS + 1, "{e}");
+        assert!(e.message.contains(&format!("`i{MAX_INSTRUMENTS}`")), "{e}");
+        // As many as a scene may have are read.
+        let eight: String = text
+            .lines()
+            .take(MAX_INSTRUMENTS)
+            .map(|l| l.to_string() + "\n")
+            .collect();
+        assert_eq!(
+            Trajectory::parse(&eight, "t.csv").unwrap().tracks.len(),
+            MAX_INSTRUMENTS
+        );
+    }
+
+    #[test]
+    fn huge_and_tiny_axes_normalise_to_finite_unit_vectors() {
+        let s3 = 1.0 / 3f64.sqrt();
+        let s2 = 1.0 / 2f64.sqrt();
+        let cases = [
+            ("1e308, 1e308, 1e308", Vector3::new(s3, s3, s3)),
+            ("-1.7976931348623157e308, 0, 0", -Vector3::x()),
+            ("0, 2e154, 2e154", Vector3::new(0.0, s2, s2)),
+            ("5e-324, 0, 5e-324", Vector3::new(s2, 0.0, s2)),
+        ];
+        for (axis, expected) in cases {
+            let text = format!("0, left, 0, 0, 0, {axis}\n");
+            let tr = Trajectory::parse(&text, "t.csv").unwrap_or_else(|e| panic!("{axis}: {e}"));
+            let got = tr.tracks[0].keys[0].1.axis.into_inner();
+            assert!((got - expected).norm() < 1e-15, "{axis}: {got}");
+        }
+    }
+
+    #[test]
+    fn load_reads_a_regular_file_within_the_limit_and_nothing_else() {
+        let dir = std::env::temp_dir().join(format!("laparo-traj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Larger than the limit (sparse: nothing is written): refused, not read.
+        let big = dir.join("big.csv");
+        std::fs::File::create(&big)
+            .unwrap()
+            .set_len(MAX_TRAJECTORY_BYTES + 1)
+            .unwrap();
+        let e = Trajectory::load(&big).unwrap_err();
+        assert!(e.message.contains("over the limit"), "{e}");
+        let good = dir.join("good.csv");
+        std::fs::write(&good, CSV).unwrap();
+        assert_eq!(Trajectory::load(&good).unwrap().tracks.len(), 2);
+        #[cfg(unix)]
+        {
+            // A device never ends; a FIFO with no writer would block the read.
+            let e = Trajectory::load(Path::new("/dev/zero")).unwrap_err();
+            assert!(e.message.contains("character device"), "{e}");
+            let fifo = dir.join("fifo.csv");
+            let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+            assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+            let e = Trajectory::load(&fifo).unwrap_err();
+            assert!(e.to_string().contains("FIFO"), "{e}");
+        }
+        std::fs::remove_dir_all(dir).unwrap();
     }
 
     #[test]
