@@ -3,14 +3,14 @@
 //! `laparo-server` (no subcommand) serves the gRPC contract; `laparo-server run` steps
 //! a scene headless (no network) and can export the result for ParaView.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
-use laparo_server::engine::simulation::Simulation;
+use laparo_server::engine::simulation::{Simulation, mesh_path};
 use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
 use laparo_server::headless::trajectory::Trajectory;
@@ -283,12 +283,73 @@ fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
     Ok((seconds, PathBuf::from(path)))
 }
 
+/// Checks that `path`, written by `option`, is named as a `.{ext}` file (so that a
+/// slip of the command line cannot write VTK XML over a scene, a mesh or a script).
+fn output_name(option: &str, path: &Path, ext: &str) -> Result<(), String> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+    {
+        Ok(())
+    } else {
+        Err(format!(
+            "{option} {}: the output is a .{ext} file, so its name must end in .{ext}",
+            path.display()
+        ))
+    }
+}
+
+/// Whether `a` and `b` are one existing file (on Unix the same device and inode, so a
+/// symbolic or hard link to it counts too).
+fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        x.dev() == y.dev() && x.ino() == y.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (x, y);
+        std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok()
+    }
+}
+
 fn run(args: RunArgs) -> Result<(), String> {
     let series = args.export_every.as_deref().map(export_every).transpose()?;
+    let mut outputs = Vec::new();
+    if let Some(path) = &args.export {
+        output_name("--export", path, "vtu")?;
+        outputs.push(("--export", path.as_path()));
+    }
+    if let Some((_, path)) = &series {
+        output_name("--export-every", path, "pvd")?;
+        outputs.push(("--export-every", path.as_path()));
+    }
     let scene = match &args.scene {
         Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
         None => Scene::default_scene(),
     };
+    // Nothing this run reads is written over.
+    let mesh = mesh_path(&scene);
+    let inputs = [
+        ("scene", args.scene.as_deref()),
+        ("mesh", mesh.as_deref()),
+        ("trajectory", args.trajectory.as_deref()),
+    ];
+    for (option, output) in &outputs {
+        for (what, input) in inputs {
+            if input.is_some_and(|input| same_file(output, input)) {
+                return Err(format!(
+                    "{option} {}: that is the {what} file this run reads; writing it would \
+                     destroy it",
+                    output.display()
+                ));
+            }
+        }
+    }
     let built = Instant::now();
     let mut sim = scene.build().map_err(|e| e.to_string())?;
     let script = match &args.trajectory {

@@ -260,3 +260,109 @@ fn a_bad_series_period_or_folder_fails_with_a_message() {
         .contains("/no/such/dir/s")
     );
 }
+
+/// A single-tetrahedron Gmsh mesh, and a scene of it naming its mesh file `mesh`.
+const ONE_TET_MSH: &str = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n\
+    2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 1 1 1 2 3 4\n$EndElements\n";
+
+fn one_tet_scene(name: &str, mesh: &str) -> String {
+    format!(
+        "name = \"{name}\"\n[mesh]\nfile = \"{mesh}\"\nscale = 0.1\n\
+         [material]\nyoung_modulus = 4500.0\npoisson_ratio = 0.45\ndensity = 1060.0\n\
+         [fixed]\nnodes = [0]\n[mechanics]\nrate_hz = 1000.0\n"
+    )
+}
+
+#[test]
+fn an_export_named_as_another_kind_of_file_or_as_an_input_is_refused_and_nothing_written() {
+    let dir = temp("inputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (scene, mesh) = (dir.join("victim.toml"), dir.join("victim.msh"));
+    std::fs::write(&mesh, ONE_TET_MSH).unwrap();
+    std::fs::write(&scene, one_tet_scene("victim", "victim.msh")).unwrap();
+    // Inputs under the names exports take: a scene, a mesh and a trajectory.
+    let (scene_vtu, mesh_pvd, traj_vtu) = (
+        dir.join("scene.vtu"),
+        dir.join("mesh.pvd"),
+        dir.join("traj.vtu"),
+    );
+    std::fs::write(&mesh_pvd, ONE_TET_MSH).unwrap();
+    std::fs::write(&scene_vtu, one_tet_scene("s", "mesh.pvd")).unwrap();
+    std::fs::write(&traj_vtu, "0, left, 0, 0, 0, 0, 0, 1\n").unwrap();
+    let files = [&scene, &mesh, &scene_vtu, &mesh_pvd, &traj_vtu];
+    let before: Vec<String> = files
+        .iter()
+        .map(|f| std::fs::read_to_string(f).unwrap())
+        .collect();
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let cases: [(Vec<String>, &str); 6] = [
+        (
+            vec!["--scene".into(), s(&scene), "--export".into(), s(&scene)],
+            ".vtu",
+        ),
+        (
+            vec![
+                "--scene".into(),
+                s(&scene),
+                "--export-every".into(),
+                "0.001".into(),
+                s(&mesh),
+            ],
+            ".pvd",
+        ),
+        (vec!["--export".into(), s(&dir.join("out"))], ".vtu"),
+        (
+            vec![
+                "--scene".into(),
+                s(&scene_vtu),
+                "--export".into(),
+                s(&scene_vtu),
+            ],
+            "scene file",
+        ),
+        (
+            vec![
+                "--scene".into(),
+                s(&scene_vtu),
+                "--export-every".into(),
+                "0.01".into(),
+                s(&mesh_pvd),
+            ],
+            "mesh file",
+        ),
+        (
+            vec![
+                "--trajectory".into(),
+                s(&traj_vtu),
+                "--export".into(),
+                s(&traj_vtu),
+            ],
+            "trajectory file",
+        ),
+    ];
+    for (args, what) in cases {
+        let e = fail(server().arg("run").args(&args));
+        assert!(
+            e.contains(what) && e.contains(args.last().unwrap()),
+            "{args:?}: {e}"
+        );
+    }
+    for (f, text) in files.iter().zip(&before) {
+        assert_eq!(
+            &std::fs::read_to_string(f).unwrap(),
+            text,
+            "{}",
+            f.display()
+        );
+    }
+    // The same file reached through a symbolic link is the same file.
+    #[cfg(unix)]
+    {
+        let link = dir.join("link.vtu");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&scene_vtu, &link).unwrap();
+        let e = fail(server().args(["run", "--scene", &s(&scene_vtu), "--export", &s(&link)]));
+        assert!(e.contains("scene file"), "{e}");
+        assert_eq!(std::fs::read_to_string(&scene_vtu).unwrap(), before[2]);
+    }
+}

@@ -76,6 +76,19 @@ pub(super) fn load(scene: &Scene) -> Result<TetMesh, SceneError> {
     Ok(mesh)
 }
 
+/// The file `scene.mesh.file` names, relative to the scene's folder when it is
+/// relative; `None` for a mesh embedded in the binary (`builtin:NAME`).
+pub fn mesh_path(scene: &Scene) -> Option<PathBuf> {
+    if scene.mesh.file.starts_with("builtin:") {
+        return None;
+    }
+    let path = PathBuf::from(&scene.mesh.file);
+    Some(match &scene.base_dir {
+        Some(dir) if path.is_relative() => dir.join(path),
+        _ => path,
+    })
+}
+
 /// Reads `mesh.file`: `builtin:NAME` from the meshes embedded in the binary, else a
 /// path, relative to the scene's folder when it is relative: a regular file of at
 /// most [`MAX_MESH_BYTES`], inside `scene.mesh_root` when that is set (a served
@@ -92,12 +105,7 @@ fn read(scene: &Scene) -> Result<TetMesh, SceneError> {
             .ok_or_else(|| scene.invalid("mesh.file", format!("no built-in mesh `{name}`")))?;
         return read_gmsh(text, &scene.mesh.file).map_err(wrap);
     }
-    let mut path = PathBuf::from(&scene.mesh.file);
-    if path.is_relative()
-        && let Some(dir) = &scene.base_dir
-    {
-        path = dir.join(path);
-    }
+    let path = mesh_path(scene).expect("not a built-in mesh");
     let source = path.display().to_string();
     let bytes = match read_bounded(&path, scene.mesh_root.as_deref(), MAX_MESH_BYTES) {
         Ok(bytes) => bytes,

@@ -17,7 +17,7 @@ mod rigid;
 mod tick;
 mod timing;
 
-pub use mesh::RENUMBER_VERTICES;
+pub use mesh::{RENUMBER_VERTICES, mesh_path};
 pub use timing::TickTiming;
 
 use nalgebra::Vector3;
