@@ -10,7 +10,7 @@ use super::BoxError;
 use super::args::RemoteArgs;
 use super::out::say;
 use crate::connect::{ConnectConfig, connect, describe_status, unary};
-use crate::proto::v1::ListRecordingsRequest;
+use crate::proto::v1::{ListRecordingsRequest, RecordingInfo, RecordingState};
 
 /// `laparo recordings …`.
 #[derive(Subcommand, Debug, Clone)]
@@ -106,11 +106,7 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
             start,
             r.duration_s,
             r.size_bytes,
-            if r.in_progress {
-                "in progress"
-            } else {
-                "complete"
-            },
+            &server_state(&r),
         );
     }
     if listed.left_out > 0 {
@@ -121,6 +117,21 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
         );
     }
     Ok(())
+}
+
+/// How a recording of a server's listing ends, as the server says: its `state`, or
+/// for a server from before `state` its `in_progress`.
+fn server_state(r: &RecordingInfo) -> String {
+    match RecordingState::try_from(r.state) {
+        Ok(RecordingState::Complete) => "complete".into(),
+        Ok(RecordingState::InProgress) => "in progress".into(),
+        Ok(RecordingState::Unfinished) => "unfinished: no footer, its server stopped while \
+            recording it (replay refuses it until `laparo recordings recover` completes it)"
+            .into(),
+        Ok(RecordingState::Unspecified) if r.in_progress => "in progress".into(),
+        Ok(RecordingState::Unspecified) => "complete".into(),
+        Err(_) => format!("state {} (unknown to this client)", r.state),
+    }
 }
 
 /// The rows of the recordings in `dir`, an unreadable one with why.
@@ -163,4 +174,43 @@ fn row(
     say!(
         "| {file} | {session} | {scene} | {start_unix_s:.0} | {duration_s:.2} | {size_bytes} | {state} |"
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_server_listing_shows_the_state_the_server_gives() {
+        let info = |state: RecordingState, in_progress| RecordingInfo {
+            state: state as i32,
+            in_progress,
+            ..RecordingInfo::default()
+        };
+        // Cut short: not in progress, and not complete either.
+        let unfinished = server_state(&info(RecordingState::Unfinished, false));
+        assert!(unfinished.starts_with("unfinished") && unfinished.contains("recover"));
+        assert_eq!(
+            server_state(&info(RecordingState::Complete, false)),
+            "complete"
+        );
+        assert_eq!(
+            server_state(&info(RecordingState::InProgress, true)),
+            "in progress"
+        );
+        // A server from before `state`.
+        assert_eq!(
+            server_state(&info(RecordingState::Unspecified, true)),
+            "in progress"
+        );
+        assert_eq!(
+            server_state(&info(RecordingState::Unspecified, false)),
+            "complete"
+        );
+        let unknown = RecordingInfo {
+            state: 9,
+            ..RecordingInfo::default()
+        };
+        assert!(server_state(&unknown).contains("state 9"));
+    }
 }
