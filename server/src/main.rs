@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
+use laparo_proto::text::printable;
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::{Simulation, mesh_path};
@@ -369,7 +370,7 @@ fn run(args: RunArgs) -> Result<(), String> {
     });
     println!(
         "scene {}: {} vertices, {} tetrahedra, {} surface triangles, {} fixed; {:?} at {} Hz; built in {:.1} ms",
-        sim.scene.name,
+        printable(&sim.scene.name),
         sim.mesh.vertex_count(),
         sim.mesh.tets.len(),
         sim.mesh.surface.triangles.len(),
@@ -388,7 +389,7 @@ fn run(args: RunArgs) -> Result<(), String> {
         if !sim.supports_hold_rigid_motion() {
             return Err(format!(
                 "scene {}: a static solve needs three fixed vertices not on one line (`fixed` in the scene)",
-                sim.scene.name
+                printable(&sim.scene.name)
             ));
         }
         let start = Instant::now();

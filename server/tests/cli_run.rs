@@ -366,3 +366,24 @@ fn an_export_named_as_another_kind_of_file_or_as_an_input_is_refused_and_nothing
         assert_eq!(std::fs::read_to_string(&scene_vtu).unwrap(), before[2]);
     }
 }
+
+#[test]
+fn a_scene_name_with_control_characters_is_printed_escaped() {
+    let dir = temp("escapes");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.msh"), ONE_TET_MSH).unwrap();
+    let scene = dir.join("esc.toml");
+    // TOML escapes: ESC [2J (clear the screen) and a NUL in the name.
+    std::fs::write(&scene, one_tet_scene(r"a\u001B[2Jb\u0000c", "m.msh")).unwrap();
+    let out = succeed(
+        server()
+            .args(["run", "--seconds", "0.002", "--scene"])
+            .arg(&scene),
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        !stdout.chars().any(|c| c.is_control() && c != '\n'),
+        "{stdout:?}"
+    );
+    assert!(stdout.contains(r"scene a\u{1b}[2Jb\u{0}c:"), "{stdout}");
+}

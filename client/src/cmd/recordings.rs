@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
+use laparo_proto::text::printable;
 use laparo_server::recording::{FileState, list, recover};
 
 use super::BoxError;
@@ -155,13 +156,18 @@ fn list_dir(dir: &Path) -> Result<(), BoxError> {
                     }
                 },
             ),
-            Err(e) => say!("| {} | — | — | — | — | {} | {e} |", l.file, l.size_bytes),
+            Err(e) => say!(
+                "| {} | — | — | — | — | {} | {} |",
+                printable(&l.file),
+                l.size_bytes,
+                printable(&e.to_string())
+            ),
         }
     }
     Ok(())
 }
 
-/// One row of `laparo recordings list`, from a directory or a server alike.
+/// Prints one row of `laparo recordings list`, from a directory or a server alike.
 fn row(
     file: &str,
     session: &str,
@@ -172,8 +178,36 @@ fn row(
     state: &str,
 ) {
     say!(
-        "| {file} | {session} | {scene} | {start_unix_s:.0} | {duration_s:.2} | {size_bytes} | {state} |"
+        "{}",
+        row_text(
+            file,
+            session,
+            scene,
+            start_unix_s,
+            duration_s,
+            size_bytes,
+            state
+        )
     );
+}
+
+/// One row of the listing, with what comes from files (names) escaped
+/// ([`printable`]): a control character in a session or scene name reaches the
+/// terminal as its escape.
+fn row_text(
+    file: &str,
+    session: &str,
+    scene: &str,
+    start_unix_s: f64,
+    duration_s: f64,
+    size_bytes: u64,
+    state: &str,
+) -> String {
+    let (file, session, scene) = (printable(file), printable(session), printable(scene));
+    format!(
+        "| {file} | {session} | {scene} | {start_unix_s:.0} | {duration_s:.2} | {size_bytes} | {} |",
+        printable(state)
+    )
 }
 
 #[cfg(test)]
@@ -212,5 +246,23 @@ mod tests {
             ..RecordingInfo::default()
         };
         assert!(server_state(&unknown).contains("state 9"));
+    }
+
+    #[test]
+    fn a_row_escapes_control_characters_of_names() {
+        let row = row_text(
+            "a\u{1b}]0;x\u{7}.mcap",
+            "s\u{1b}[2J",
+            "sc\0ene\u{9b}",
+            0.0,
+            1.0,
+            2,
+            "complete",
+        );
+        assert!(!row.chars().any(|c| c.is_control()), "{row:?}");
+        assert!(
+            row.contains(r"s\u{1b}[2J") && row.contains(r"sc\u{0}ene\u{9b}"),
+            "{row}"
+        );
     }
 }

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use laparo_proto::text::printable;
 use laparo_server::recording::{Recording, summarize};
 
 use super::args::{RemoteArgs, offset, plot_size, speed};
@@ -53,18 +54,21 @@ pub async fn run(args: ReplayArgs) -> Result<(), BoxError> {
     let s = summarize(&recording)?;
     let meta = recording.meta();
     say!(
-        "{}: session {} of scene `{}`, format {}",
-        args.file.display(),
-        meta.session_id,
-        meta.scene,
-        meta.format_version
+        "{}",
+        heading(
+            &args.file,
+            &meta.session_id,
+            &meta.scene,
+            &meta.format_version
+        )
     );
     say!("  duration             {:.3} s simulated", s.duration_s);
     say!("  ticks                {}", s.ticks);
     say!("  poses received       {}", s.poses);
     for (name, i) in &s.instruments {
         say!(
-            "  {name}: path {:.1} mm, in contact {:.2} s, force max {:.3} N mean {:.3} N (in contact {:.3} N), largest jump {:.3} N",
+            "  {}: path {:.1} mm, in contact {:.2} s, force max {:.3} N mean {:.3} N (in contact {:.3} N), largest jump {:.3} N",
+            printable(name),
             i.path_length_m * 1e3,
             i.time_in_contact_s,
             i.max_force_n,
@@ -74,7 +78,7 @@ pub async fn run(args: ReplayArgs) -> Result<(), BoxError> {
         );
     }
     for (kind, n) in &s.events {
-        say!("  event {kind:<28} {n}");
+        say!("  event {:<28} {n}", printable(kind));
     }
     if let Some(out) = &args.plot {
         let states = recording.instrument_states()?;
@@ -103,16 +107,32 @@ pub async fn run(args: ReplayArgs) -> Result<(), BoxError> {
             if plotted.is_empty() {
                 "no instrument".to_string()
             } else {
-                plotted.join(", ")
+                printable(&plotted.join(", ")).into_owned()
             },
             if left_out.is_empty() {
                 String::new()
             } else {
-                format!(" (left out, never posed: {})", left_out.join(", "))
+                format!(
+                    " (left out, never posed: {})",
+                    printable(&left_out.join(", "))
+                )
             }
         );
     }
     Ok(())
+}
+
+/// The first line of a recording's summary: its file, session, scene and format,
+/// what comes from the file escaped ([`printable`]) so that a control character in a
+/// name cannot act on the terminal.
+fn heading(file: &Path, session: &str, scene: &str, format_version: &str) -> String {
+    format!(
+        "{}: session {} of scene `{}`, format {}",
+        printable(&file.display().to_string()),
+        printable(session),
+        printable(scene),
+        printable(format_version)
+    )
 }
 
 /// Opens a recording; one cut short (a killed server, a session still recording)
@@ -160,4 +180,27 @@ async fn watch(connect: ConnectConfig, args: &ReplayArgs) -> Result<(), BoxError
     let summary = run_observe(config, print_report(what)).await?;
     print_watch_summary(&summary, "the recording ended");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_heading_escapes_control_characters_of_the_file() {
+        let h = heading(
+            Path::new("r\u{1b}[31m.mcap"),
+            "s\u{1b}]0;pwned\u{7}",
+            "scene\0\u{202e}",
+            "1\n",
+        );
+        assert!(
+            !h.chars().any(|c| c.is_control() || c == '\u{202e}'),
+            "{h:?}"
+        );
+        assert!(
+            h.contains(r"session s\u{1b}]0;pwned\u{7} of scene `scene\u{0}\u{202e}`"),
+            "{h}"
+        );
+    }
 }
