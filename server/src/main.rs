@@ -275,6 +275,16 @@ fn main() -> ExitCode {
     }
 }
 
+/// `x` as a person reads it: plain decimals from 1e-4 to below 1e9, scientific
+/// notation beyond (`{}` would write 1e-300 with 300 digits).
+fn readable(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// The period and path of `--export-every T OUT.pvd`, checked.
 fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
     let [period, path] = values else {
@@ -414,7 +424,10 @@ fn run(args: RunArgs) -> Result<(), String> {
             let frames = (seconds / period.max(sim.dt)).floor() + 2.0;
             if frames > pvd::MAX_FRAMES as f64 {
                 return Err(format!(
-                    "--export-every {period}: {frames} frames over {seconds} s; at most {} (raise T)",
+                    "--export-every {}: {} frames over {} s; at most {} (raise T)",
+                    readable(*period),
+                    readable(frames),
+                    readable(seconds),
                     pvd::MAX_FRAMES
                 ));
             }

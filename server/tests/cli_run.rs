@@ -387,3 +387,21 @@ fn a_scene_name_with_control_characters_is_printed_escaped() {
     );
     assert!(stdout.contains(r"scene a\u{1b}[2Jb\u{0}c:"), "{stdout}");
 }
+
+#[test]
+fn a_tiny_series_period_is_refused_in_a_readable_message() {
+    // At 60 Hz a frame every tick over 10^4 s: 600,002 frames, refused before the run.
+    let e = fail(server().args([
+        "run",
+        "--seconds",
+        "10000",
+        "--export-every",
+        "1e-300",
+        "x.pvd",
+    ]));
+    assert!(
+        e.contains("--export-every 1e-300: 600002 frames over 10000 s; at most 100000"),
+        "{e}"
+    );
+    assert!(e.len() < 200, "{} bytes: {e}", e.len());
+}
