@@ -6,7 +6,9 @@ use crate::engine::mesh::MeshError;
 /// it the fault is.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{scene}: cannot read: {message}")]
+    /// The file itself: `message` says what is wrong in words that follow the
+    /// file's name ("cannot read: …", "is a directory, not a regular file").
+    #[error("{scene}: {message}")]
     Io { scene: String, message: String },
     /// TOML syntax, an unknown key, or a value of the wrong type.
     #[error("{scene}:{line}: `{path}`: {message}", line = line.map_or(String::from("?"), |l| l.to_string()))]

@@ -382,7 +382,7 @@ impl Scene {
             message,
         };
         let bytes = read_bounded(path, root, MAX_SCENE_BYTES).map_err(|e| io(e.to_string()))?;
-        let text = String::from_utf8(bytes).map_err(|e| io(format!("not UTF-8 text: {e}")))?;
+        let text = String::from_utf8(bytes).map_err(|e| io(format!("is not UTF-8 text: {e}")))?;
         Scene::parse(&text, &source, path.parent())
     }
 

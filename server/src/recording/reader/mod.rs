@@ -55,8 +55,8 @@ pub enum ReadError {
     #[error("{file} is not a laparo recording: {message}")]
     NotARecording { file: String, message: String },
     #[error(
-        "{file} is a laparo recording of format version `{found}`, which this server does \
-         not read (it reads version {FORMAT_VERSION})"
+        "{file} is a laparo recording of format version `{found}`, which this build of \
+         laparo does not read (it reads version {FORMAT_VERSION})"
     )]
     UnsupportedVersion { file: String, found: String },
     #[error("{file}: message {sequence} on {topic} does not decode: {message}")]

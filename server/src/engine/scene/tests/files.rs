@@ -170,3 +170,24 @@ fn scene_files_get_the_same_checks() {
         .to_string();
     assert!(e.contains("outside the scene directory"), "{e}");
 }
+
+/// A scene file that is not there, or not text, is named once with what is wrong
+/// ("cannot read: cannot read: No such file…" said it twice).
+#[test]
+fn a_missing_or_binary_scene_file_is_named_with_what_is_wrong() {
+    let root = tempfile::tempdir().unwrap();
+    let missing = root.path().join("missing.toml");
+    let e = Scene::load(&missing).unwrap_err().to_string();
+    assert_eq!(e.matches("cannot read").count(), 1, "{e}");
+    assert!(
+        e.starts_with(&format!("{}: cannot read: ", missing.display())),
+        "{e}"
+    );
+    let binary = root.path().join("binary.toml");
+    std::fs::write(&binary, [0xff, 0xfe, 0x00]).unwrap();
+    let e = Scene::load(&binary).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("{}: is not UTF-8 text", binary.display())),
+        "{e}"
+    );
+}
