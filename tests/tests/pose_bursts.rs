@@ -1,12 +1,13 @@
 //! The pose rate limit against a real server on loopback: a burst of queued poses
 //! after a network stall is admitted, sustained poses far above the limit close the
-//! stream with `RESOURCE_EXHAUSTED`.
+//! stream with `RESOURCE_EXHAUSTED`, and leaving and joining again does not refill
+//! an instrument's budget.
 
 use std::time::Duration;
 
 use laparo_proto::v1;
 use laparo_proto::v1::server_message::Kind;
-use laparo_server::service::ServeConfig;
+use laparo_server::service::{PoseLimits, ServeConfig};
 use laparo_tests::pressing::{flood_until_closed, front, state_of};
 use laparo_tests::server::*;
 use tonic::Code;
@@ -92,5 +93,65 @@ async fn sustained_poses_far_above_the_limit_close_the_stream() {
     assert_eq!(closed.1, Code::ResourceExhausted);
     let (rejected, _) = counts(ch.clone(), &session).await;
     assert!(rejected > 100, "{rejected}");
+    server.shutdown().await.unwrap();
+}
+
+/// An instrument's pose budget stays with the instrument: a station that spent it,
+/// left and joined again, is rate-limited at its first pose. Each join used to
+/// start a full bucket, and a loop of joins sent 663,000 poses a second against a
+/// limit of 2,000, drowning the recording.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn leaving_and_joining_again_does_not_refill_the_pose_budget() {
+    // Five poses at once, then one every 100 s: nothing refills within the test.
+    let server = TestServer::start(ServeConfig {
+        pose_limits: PoseLimits {
+            rate_hz: 0.01,
+            burst: 5.0,
+        },
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let rate_limited = |m: &v1::ServerMessage| matches!(&m.kind, Some(Kind::Error(e)) if e.code == v1::ErrorCode::RateLimited as i32);
+    let (mut a, joined) = join(ch.clone(), None, &session, &["left"]).await.unwrap();
+    let f = front(&joined);
+    let away = [f[0], f[1], f[2] + 0.05];
+    let z = [0.0, 0.0, 1.0];
+    for sequence in 1..=6 {
+        a.tx.send(pose("left", away, z, sequence)).await.unwrap();
+    }
+    assert!(
+        wait_for(&mut a.rx, WAIT, rate_limited).await.is_some(),
+        "the sixth pose was not limited"
+    );
+    assert_eq!(counts(ch.clone(), &session).await, (1, 5));
+    a.tx.send(v1::StationMessage {
+        kind: Some(v1::station_message::Kind::Leave(v1::Leave::default())),
+    })
+    .await
+    .unwrap();
+    drop(a);
+    // The instrument is free again once the first station is gone.
+    let mut again = None;
+    for _ in 0..100 {
+        match join(ch.clone(), None, &session, &["left"]).await {
+            Ok((b, _)) => {
+                again = Some(b);
+                break;
+            }
+            Err(e) if e.code() == Code::AlreadyExists => {
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    let mut b = again.expect("left was never free again");
+    b.tx.send(pose("left", away, z, 1)).await.unwrap();
+    assert!(
+        wait_for(&mut b.rx, WAIT, rate_limited).await.is_some(),
+        "the budget was refilled"
+    );
+    assert_eq!(counts(ch.clone(), &session).await, (2, 5));
     server.shutdown().await.unwrap();
 }

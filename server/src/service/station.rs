@@ -409,6 +409,24 @@ struct Claim {
     last: Option<u64>,
 }
 
+/// A station's claims while it reads; when it ends, each instrument's pose-rate
+/// bucket goes back to the session for the next station that claims it
+/// ([`Session::keep_pose_budget`]), before the instruments are freed.
+struct Claims<'a> {
+    session: &'a Session,
+    /// The instant the buckets' times count from.
+    since: Instant,
+    list: Vec<Claim>,
+}
+
+impl Drop for Claims<'_> {
+    fn drop(&mut self) {
+        for c in &self.list {
+            self.session.keep_pose_budget(c.index, c.limit, self.since);
+        }
+    }
+}
+
 /// What the reader of a station's messages watches besides them.
 struct Reader {
     limits: PoseLimits,
@@ -436,15 +454,21 @@ async fn receive(
     let mut check = tokio::time::interval(check_period);
     check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
 
-    let mut claims: Vec<Claim> = claimed
-        .iter()
-        .map(|&index| Claim {
-            index,
-            limit: RateLimit::new(limits.rate_hz, limits.burst),
-            last: None,
-        })
-        .collect();
     let start = Instant::now();
+    let mut claims = Claims {
+        session,
+        since: start,
+        list: claimed
+            .iter()
+            .map(|&index| Claim {
+                index,
+                limit: session
+                    .take_pose_budget(index, start)
+                    .unwrap_or_else(|| RateLimit::new(limits.rate_hz, limits.burst)),
+                last: None,
+            })
+            .collect(),
+    };
     let (mut window_start, mut rejected, mut rate_limited) = (0.0, 0u32, 0u32);
     let (mut events_this_second, mut unreported) = (0u32, 0u64);
     let mut closing = session.closing();
@@ -483,7 +507,7 @@ async fn receive(
         };
         let now = start.elapsed().as_secs_f64();
         let result = match message.kind {
-            Some(Kind::Pose(p)) => accept_pose(session, station, &mut claims, &p, now),
+            Some(Kind::Pose(p)) => accept_pose(session, station, &mut claims.list, &p, now),
             Some(Kind::Heartbeat(_)) => Ok(()),
             Some(Kind::Leave(_)) => return Ending::Ended,
             Some(Kind::Open(_)) => Err((

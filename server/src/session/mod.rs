@@ -83,6 +83,9 @@ pub struct Roster {
     next_station: u64,
     /// Each station's eviction handle ([`eviction`]).
     evictions: BTreeMap<u64, tokio::sync::oneshot::Sender<Eviction>>,
+    /// Each instrument's pose-rate bucket as its last holder left it, with the
+    /// instant its times count from ([`Session::keep_pose_budget`]).
+    pose_budgets: Vec<Option<(input::RateLimit, Instant)>>,
 }
 
 /// A running session.
@@ -170,6 +173,7 @@ impl Session {
             stats: stats.clone(),
             roster: Mutex::new(Roster {
                 holders: vec![None; n],
+                pose_budgets: vec![None; n],
                 ..Roster::default()
             }),
             slots: inputs.into_iter().map(Mutex::new).collect(),
@@ -242,6 +246,23 @@ impl Session {
     /// has no holder until a station claims it again. The withdrawal is written
     /// under the roster lock, so it cannot overwrite the pose of a station that
     /// claims the instrument right after.
+    /// Keeps instrument `k`'s pose-rate bucket, its times counted from `since`,
+    /// for the next station to claim it: a station that left and joined again
+    /// started with a full bucket each time, and a loop of joins sent 663,000
+    /// poses a second against a limit of 2,000 (and drowned the recording).
+    pub fn keep_pose_budget(&self, k: usize, budget: input::RateLimit, since: Instant) {
+        if let Some(slot) = self.roster().pose_budgets.get_mut(k) {
+            *slot = Some((budget, since));
+        }
+    }
+
+    /// Instrument `k`'s pose-rate bucket as its last holder left it, its times
+    /// counted from `now`; `None` if no station has held it.
+    pub fn take_pose_budget(&self, k: usize, now: Instant) -> Option<input::RateLimit> {
+        let (budget, since) = self.roster().pose_budgets.get_mut(k)?.take()?;
+        Some(budget.rebased(now.saturating_duration_since(since).as_secs_f64()))
+    }
+
     pub fn remove_station(&self, station: u64) {
         let mut roster = self.roster();
         roster.stations.remove(&station);

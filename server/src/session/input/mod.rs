@@ -139,6 +139,14 @@ impl RateLimit {
         }
     }
 
+    /// The same bucket on a clock started `seconds` later: its times, `now` as
+    /// [`admit`](Self::admit) takes it, are that much smaller. A bucket handed from
+    /// one station to the next keeps what its tokens were.
+    pub fn rebased(mut self, seconds: f64) -> Self {
+        self.last = self.last.map(|t| t - seconds);
+        self
+    }
+
     /// Whether a message at time `now` (s, monotonic) is within the limit.
     pub fn admit(&mut self, now: f64) -> bool {
         if let Some(last) = self.last {
