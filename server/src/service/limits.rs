@@ -18,6 +18,24 @@ pub const MAX_REASON_BYTES: usize = 1024;
 /// Instruments a single join may name: more than a scene ever has.
 pub const MAX_INSTRUMENTS: usize = 64;
 
+/// Stations (joined or attached, watching or holding instruments) in one session at
+/// once. Each is sent every frame and every event, and each join is an event to
+/// all the others: with no bound, 4,000 watching stations made the session's
+/// `SessionInfo` larger than a client reads (5 MB) and its events grow with the
+/// square of the count. A lab's session has a few stations and an instructor.
+pub const MAX_STATIONS_PER_SESSION: usize = 64;
+
+/// Observers (`Observe` streams) of one session at once: each is sent every
+/// frame; a class watching one session is far fewer. With no bound, one
+/// connection opened 2,000 observers that never read (0.2–1 MB each, the
+/// session's ticks slowing for the copying).
+pub const MAX_OBSERVERS_PER_SESSION: u32 = 64;
+
+/// Streams one HTTP/2 connection may have open at once (its
+/// `SETTINGS_MAX_CONCURRENT_STREAMS`): a console page opens a handful, a station
+/// one or two. With no bound one connection opened 6,000 streams.
+pub const MAX_STREAMS_PER_CONNECTION: u32 = 128;
+
 /// `INVALID_ARGUMENT` naming `field` and `limit` when `value` is longer than `limit` bytes.
 pub fn check_len(field: &str, value: &str, limit: usize) -> Result<(), Status> {
     if value.len() > limit {

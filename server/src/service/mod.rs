@@ -232,6 +232,7 @@ pub async fn serve(
         keepalive_timeout: connections::DEFAULT_KEEPALIVE_TIMEOUT,
     };
     let mut builder = Server::builder()
+        .max_concurrent_streams(limits::MAX_STREAMS_PER_CONNECTION)
         .http2_keepalive_interval(Some(limits.keepalive_interval))
         .http2_keepalive_timeout(Some(limits.keepalive_timeout));
     if let Some(tls) = &config.tls {

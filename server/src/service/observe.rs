@@ -8,6 +8,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::caller;
+use super::limits::MAX_OBSERVERS_PER_SESSION;
 use super::registry::Registry;
 use super::stream::{OUTBOUND, frame_rate, pump};
 use crate::session::Session;
@@ -51,7 +52,17 @@ impl v1::observe_server::Observe for ObserveService {
                 kind: Some(v1::observe_message::Kind::Event(event)),
             }));
         }
-        session.roster().observers += 1;
+        {
+            let mut roster = session.roster();
+            if roster.observers >= MAX_OBSERVERS_PER_SESSION {
+                return Err(Status::resource_exhausted(format!(
+                    "session `{}` has {MAX_OBSERVERS_PER_SESSION} observers already \
+                     (MAX_OBSERVERS_PER_SESSION)",
+                    session.id
+                )));
+            }
+            roster.observers += 1;
+        }
         let observer = Observer(session.clone());
         let connected = session.connect();
         let (_done_tx, done) = watch::channel(false);

@@ -47,6 +47,7 @@ use tonic::{Request, Response, Status, Streaming};
 use super::attach::{AttachStream, Attachments};
 use super::auth::{Role, caller};
 use super::decode_status::contract_status;
+use super::limits::MAX_STATIONS_PER_SESSION;
 use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
@@ -227,6 +228,13 @@ impl StationService {
         let rate = frame_rate(open.surface_frame_rate_hz, session.scene.mechanics.rate_hz)?;
         let (station, evicted) = {
             let mut roster = session.roster();
+            if roster.stations.len() >= MAX_STATIONS_PER_SESSION {
+                return Err(Status::resource_exhausted(format!(
+                    "session `{}` has {MAX_STATIONS_PER_SESSION} stations already \
+                     (MAX_STATIONS_PER_SESSION)",
+                    session.id
+                )));
+            }
             for &k in &claimed {
                 if let Some(holder) = roster.holders[k] {
                     return Err(Status::already_exists(format!(
