@@ -57,7 +57,8 @@ struct ServeArgs {
     #[arg(long, default_value_t = 2000.0, value_parser = positive_rate)]
     max_pose_rate: f64,
     /// Seconds a station may send nothing (no pose, no heartbeat), or take none of
-    /// the server's messages, before it loses its instruments (0.5 to 3600).
+    /// the server's messages, before it loses its instruments; an observer or a
+    /// replay that takes none of its messages that long is ended (0.5 to 3600).
     #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = station_timeout)]
     station_timeout: f64,
     /// Listen on a non-loopback address without TLS and tokens.

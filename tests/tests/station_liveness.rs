@@ -240,3 +240,103 @@ async fn the_idle_timeout_counts_from_the_release_of_a_silent_station() {
     drop(silent);
     server.shutdown().await.unwrap();
 }
+
+/// A connection whose HTTP/2 windows are small, so that a stream nobody reads
+/// stops the server's sending once 16 KiB wait for it.
+async fn frozen_channel(server: &TestServer) -> Channel {
+    Endpoint::from_shared(format!("http://{}", server.addr))
+        .unwrap()
+        .initial_stream_window_size(16 * 1024)
+        .initial_connection_window_size(16 * 1024)
+        .connect()
+        .await
+        .unwrap()
+}
+
+/// An observer that takes none of its messages for the station timeout is cut and
+/// gives its place back: it used to count among the session's observers, and have
+/// every frame copied for it, for as long as its connection lasted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_frozen_observer_is_cut_and_leaves_its_place() {
+    let server = server().await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let observers = || async {
+        v1::sessions_client::SessionsClient::new(ch.clone())
+            .get_session(v1::GetSessionRequest {
+                session_id: session.clone(),
+            })
+            .await
+            .unwrap()
+            .into_inner()
+            .observer_count
+    };
+    let frozen = v1::observe_client::ObserveClient::new(frozen_channel(&server).await)
+        .observe(v1::ObserveRequest {
+            session_id: session.clone(),
+            frame_rate_hz: None,
+        })
+        .await
+        .unwrap();
+    assert_eq!(observers().await, 1);
+    let start = Instant::now();
+    while observers().await != 0 && start.elapsed() < WAIT {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(observers().await, 0, "the frozen observer kept its place");
+    assert!(start.elapsed() >= Duration::from_secs_f64(TIMEOUT_S * 0.9));
+    drop(frozen);
+    server.shutdown().await.unwrap();
+}
+
+/// A replay nobody reads ends after the station timeout and frees its
+/// `--max-replays` slot: 64 stalled replays, any token's, used to refuse every
+/// other replay for as long as their connections lasted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replay_nobody_reads_frees_its_slot() {
+    use laparo_server::service::capacity::Capacity;
+    let dir = laparo_tests::recordings::recordings_dir("stalled-replay");
+    let server = TestServer::start(ServeConfig {
+        station_timeout: StationTimeout::from_secs(TIMEOUT_S).unwrap(),
+        recordings: Some(dir.clone()),
+        capacity: Capacity {
+            replays: 1,
+            ..Capacity::of_this_machine()
+        },
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let rec = laparo_tests::recordings::record_press(&ch, &dir, 1.0).await;
+    let file = rec.file.file_name().unwrap().to_str().unwrap().to_string();
+    let replay = |ch: Channel| {
+        let file = file.clone();
+        async move {
+            v1::recordings_client::RecordingsClient::new(ch)
+                .replay(v1::ReplayRequest {
+                    file,
+                    speed: Some(100.0),
+                    ..Default::default()
+                })
+                .await
+        }
+    };
+    let stalled = replay(frozen_channel(&server).await).await.unwrap();
+    let refused = replay(ch.clone()).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    let start = Instant::now();
+    let mut taken = None;
+    while taken.is_none() && start.elapsed() < WAIT {
+        match replay(ch.clone()).await {
+            Ok(r) => taken = Some(r),
+            Err(e) if e.code() == Code::ResourceExhausted => {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    assert!(taken.is_some(), "the stalled replay kept its slot");
+    drop(stalled);
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -201,7 +201,8 @@ pub async fn serve(
     let observe = service!(
         v1::observe_server::ObserveServer<observe::ObserveService>,
         observe::ObserveService {
-            registry: registry.clone()
+            registry: registry.clone(),
+            timeout: config.station_timeout,
         }
     );
     let recordings = service!(
@@ -209,6 +210,7 @@ pub async fn serve(
         recordings::RecordingsService {
             registry: registry.clone(),
             lister: Default::default(),
+            timeout: config.station_timeout,
         }
     );
     for name in [

@@ -1,20 +1,25 @@
 //! `Observe`: an instructor's read-only view of a session, every instrument.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use laparo_proto::v1;
 use tokio::sync::{mpsc, watch};
-use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use super::auth::caller;
 use super::limits::MAX_OBSERVERS_PER_SESSION;
+use super::liveness::{Liveness, Outbound, StationTimeout, Taken};
 use super::registry::Registry;
 use super::stream::{OUTBOUND, frame_rate, pump};
 use crate::session::Session;
 
 pub struct ObserveService {
     pub registry: Arc<Registry>,
+    /// How long an observer may take none of the messages waiting for it before
+    /// its stream is cut (the server's station timeout, applied as to a station's
+    /// outgoing queue; an observer sends nothing, so only taking counts).
+    pub timeout: StationTimeout,
 }
 
 /// Counts an observer in the roster while its stream lasts.
@@ -29,7 +34,7 @@ impl Drop for Observer {
 
 #[tonic::async_trait]
 impl v1::observe_server::Observe for ObserveService {
-    type ObserveStream = ReceiverStream<Result<v1::ObserveMessage, Status>>;
+    type ObserveStream = Outbound<v1::ObserveMessage>;
 
     async fn observe(
         &self,
@@ -65,11 +70,37 @@ impl v1::observe_server::Observe for ObserveService {
         }
         let observer = Observer(session.clone());
         let connected = session.connect();
-        let (_done_tx, done) = watch::channel(false);
+        let taken = Taken::new(Instant::now());
+        let (outbound, cut) = Outbound::new(rx, taken.clone());
+        let mut liveness = Liveness::new(self.timeout, Instant::now(), taken);
+        let period = self.timeout.check_period();
         tokio::spawn(async move {
-            let (_observer, _connected, _done_tx) = (observer, connected, _done_tx);
-            pump(session, tx, rate, done).await;
+            let (_observer, _connected) = (observer, connected);
+            // A frozen observer (it no longer reads, its HTTP/2 window full) is cut:
+            // it kept its place among the session's observers, and the session
+            // copied every frame for it, for ever.
+            let queue = tx.clone();
+            let (_done_tx, done) = watch::channel(false);
+            let pumping = pump(session, tx, rate, done);
+            tokio::pin!(pumping);
+            let mut check = tokio::time::interval(period);
+            check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            loop {
+                tokio::select! {
+                    _ = &mut pumping => break,
+                    _ = check.tick() => {
+                        let now = Instant::now();
+                        liveness.heard(now);
+                        if let Some(gone) = liveness.check(now, queue.capacity() < OUTBOUND) {
+                            let _ = cut.send(Status::deadline_exceeded(format!(
+                                "this observer {gone}: its stream ends"
+                            )));
+                            break;
+                        }
+                    }
+                }
+            }
         });
-        Ok(Response::new(ReceiverStream::new(rx)))
+        Ok(Response::new(outbound))
     }
 }

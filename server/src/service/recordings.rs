@@ -63,6 +63,9 @@ pub struct RecordingsService {
     /// What the recordings directory's files were found to hold, by name, size and
     /// modification time; one listing reads at a time ([`list::Lister`]).
     pub lister: Arc<list::Lister>,
+    /// How long a replay's client may take none of its messages before the replay
+    /// ends and its slot is free (the server's station timeout).
+    pub timeout: super::liveness::StationTimeout,
 }
 
 /// Fastest replay, times real time: a few minutes of frames in seconds.
@@ -346,8 +349,9 @@ impl v1::recordings_server::Recordings for RecordingsService {
             }),
         };
         let shutdown = self.registry.shutting_down();
+        let stall = self.timeout.duration();
         tokio::spawn(async move {
-            pace(feed_rx, tx, speed, shutdown).await;
+            pace(feed_rx, tx, speed, shutdown, stall).await;
             drop(slot);
         });
         Ok(Response::new(ReceiverStream::new(rx)))

@@ -371,13 +371,17 @@ impl Reader for ReadResimulated {
 }
 
 /// Sends `feed`'s messages at their times divided by `speed` after now, until the
-/// feed ends (the stream then ends OK), the client goes, or the server shuts down
-/// (the stream then ends with `UNAVAILABLE`, as live streams do).
+/// feed ends (the stream then ends OK), the client goes, the client takes none of
+/// them for `stall` (the stream then ends: a replay that nobody reads held its
+/// `--max-replays` slot for ever, and 64 of them, any token's, refused everyone
+/// else's), or the server shuts down (the stream then ends with `UNAVAILABLE`, as
+/// live streams do).
 pub async fn pace(
     mut feed: mpsc::Receiver<Result<Timed, Status>>,
     tx: mpsc::Sender<Result<v1::ObserveMessage, Status>>,
     speed: f64,
     mut shutdown: watch::Receiver<Option<String>>,
+    stall: Duration,
 ) {
     let start = Instant::now();
     let ended = |reason: String| Status::unavailable(format!("replay ended: {reason}"));
@@ -426,6 +430,8 @@ pub async fn pace(
             sent = tx.send(Ok(message)) => if sent.is_err() {
                 return;
             },
+            // The queue stayed full: the client took nothing for the whole wait.
+            _ = tokio::time::sleep(stall) => return,
         }
     }
 }
