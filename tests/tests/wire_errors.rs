@@ -2,15 +2,20 @@
 //! (as a client in another language, or a broken one, would send them): bytes that
 //! are not the request message answer `INVALID_ARGUMENT`, a message over the
 //! server's size limit `RESOURCE_EXHAUSTED` naming the limit in bytes, on a unary
-//! call and on the `Station.Join` stream, before and after `Joined`.
+//! call and on the `Station.Join` stream, before and after `Joined`. Bodies that
+//! are not even gRPC framing (a compression flag without an encoding, a flag that
+//! does not exist, no message at all, gRPC-web text that is not base64) are sent
+//! as raw HTTP/2 or HTTP/1.1 and answer `INVALID_ARGUMENT` too.
 
 use bytes::{Buf, BufMut, Bytes};
 use laparo_proto::v1;
 use laparo_server::service::{MAX_MESSAGE_BYTES, ServeConfig};
 use laparo_tests::server::*;
 use prost::Message;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tonic::codec::{Codec, DecodeBuf, Decoder, EncodeBuf, Encoder};
-use tonic::codegen::http::uri::PathAndQuery;
+use tonic::codegen::Service;
+use tonic::codegen::http::{self, uri::PathAndQuery};
 use tonic::transport::Channel;
 use tonic::{Code, Request, Status};
 
@@ -178,6 +183,103 @@ async fn a_station_message_that_cannot_be_read_ends_join_with_the_contracts_code
         if code == Code::ResourceExhausted {
             assert_over_limit(&status);
         }
+    }
+    server.shutdown().await.unwrap();
+}
+
+/// `body` as the whole HTTP/2 body of a gRPC call to `path`, framing and all; the
+/// status the server answers with before reading further (a trailers-only answer:
+/// the status in the response's headers).
+async fn raw_h2(ch: Channel, path: &str, body: &'static str) -> Status {
+    // The bytes these tests send are all below 0x80: a `String` carries them as
+    // they are, and is an HTTP body.
+    let body = if body.is_empty() {
+        tonic::body::Body::empty()
+    } else {
+        tonic::body::Body::new(body.to_string())
+    };
+    let request = http::Request::post(format!("http://laparo{path}"))
+        .header("content-type", "application/grpc")
+        .header("te", "trailers")
+        .body(body)
+        .unwrap();
+    let mut ch = ch;
+    std::future::poll_fn(|cx| ch.poll_ready(cx)).await.unwrap();
+    let response = tokio::time::timeout(WAIT, ch.call(request))
+        .await
+        .expect("the server answers")
+        .unwrap();
+    Status::from_header_map(response.headers())
+        .unwrap_or_else(|| panic!("a trailers-only answer: {response:?}"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_body_that_is_not_grpc_framing_gets_invalid_argument() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let ch = server.channel().await;
+    let path = "/laparo.v1.Scenes/GetScene";
+    for (what, body, says) in [
+        (
+            "flagged compressed without grpc-encoding",
+            // flag 1, length 3, GetSceneRequest { name: "a" }
+            "\x01\0\0\0\x03\x0a\x01a",
+            "compressed-flag but no grpc-encoding",
+        ),
+        (
+            "a compression flag that does not exist",
+            "\x07\0\0\0\0",
+            "invalid compression flag: 7",
+        ),
+        ("no message at all", "", "no message"),
+    ] {
+        let status = raw_h2(ch.clone(), path, body).await;
+        assert_eq!(status.code(), Code::InvalidArgument, "{what}: {status:?}");
+        assert!(status.message().contains(says), "{what}: {status:?}");
+    }
+    // The same framing with flag 0 is read: the scene "a" does not exist.
+    let plain = raw_h2(ch.clone(), path, "\0\0\0\0\x03\x0a\x01a").await;
+    assert_eq!(plain.code(), Code::NotFound, "{plain:?}");
+    server.shutdown().await.unwrap();
+}
+
+/// A gRPC-web text call (`application/grpc-web-text`, the body in base64) to
+/// `Sessions.GetSession` over HTTP/1.1; the response's head, lower-cased.
+async fn grpc_web_text(server: &TestServer, body: &str) -> String {
+    let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
+    let request = format!(
+        "POST /laparo.v1.Sessions/GetSession HTTP/1.1\r\nhost: x\r\ncontent-type: application/grpc-web-text\r\ncontent-length: {}\r\n\r\n{body}",
+        body.len()
+    );
+    s.write_all(request.as_bytes()).await.unwrap();
+    let mut out = Vec::new();
+    let mut buf = [0u8; 4096];
+    while !out.windows(4).any(|w| w == b"\r\n\r\n") {
+        let n = tokio::time::timeout(WAIT, s.read(&mut buf))
+            .await
+            .expect("the server answers")
+            .unwrap();
+        if n == 0 {
+            break;
+        }
+        out.extend_from_slice(&buf[..n]);
+    }
+    let text = String::from_utf8_lossy(&out).to_lowercase();
+    text[..text.find("\r\n\r\n").unwrap_or(text.len())].to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn grpc_web_text_that_is_not_base64_gets_invalid_argument() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    // Five zero bytes (an empty GetSessionRequest, framed) in base64: read, and
+    // the empty id names no session.
+    let read = grpc_web_text(&server, "AAAAAAA=").await;
+    assert!(read.contains("grpc-status: 5"), "{read}");
+    // "!" is no base64 symbol; three characters are no whole base64 group.
+    for body in ["!!!!!!!!", "AAA"] {
+        let head = grpc_web_text(&server, body).await;
+        assert!(head.starts_with("http/1.1 200"), "{body}: {head}");
+        assert!(head.contains("grpc-status: 3"), "{body}: {head}");
+        assert!(head.contains("base64"), "{body}: {head}");
     }
     server.shutdown().await.unwrap();
 }
