@@ -77,6 +77,11 @@ struct ServeArgs {
     /// max(16, min(8 × sessions + 64, fd limit − 128 − 2 × sessions))].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     max_connections: Option<u32>,
+    /// Most connections open at once from one address (an IPv6 /64 counts as one;
+    /// loopback is not counted per address); more are closed as they come
+    /// [default: max(8, max-connections / 4)].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    max_connections_per_peer: Option<u32>,
     /// Most replays streaming at once [default: max(1, min(32 × cores, memory / 4 / 16 MiB))].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     max_replays: Option<u32>,
@@ -156,7 +161,11 @@ fn serve(args: ServeArgs) -> Result<(), String> {
                 capacity = capacity.with_sessions(n as usize, machine);
             }
             if let Some(n) = args.max_connections {
-                capacity.connections = n as usize;
+                // The per-peer default follows the connection limit.
+                capacity = capacity.with_connections(n as usize);
+            }
+            if let Some(n) = args.max_connections_per_peer {
+                capacity.connections_per_peer = n as usize;
             }
             if let Some(n) = args.max_replays {
                 capacity.replays = n as usize;

@@ -21,6 +21,7 @@ fn limits(sessions: usize, replays: usize) -> Capacity {
     Capacity {
         sessions,
         connections: 64,
+        connections_per_peer: 64,
         replays,
     }
 }

@@ -22,6 +22,11 @@
 //!   (its recording, a mesh while it loads) and 128 are kept for the process's
 //!   other files, so that the limit refuses connections before `accept` runs out
 //!   of descriptors.
+//! - **connections per peer** = max(8, connections / 4), counted by address (an
+//!   IPv6 /64 as one address), loopback not counted
+//!   ([`connections_per_peer_for`]): one address cannot take every slot (a peer
+//!   that opens connections and trickles nothing on them refused every other
+//!   client), yet a quarter leaves room for a classroom behind one NAT address.
 //! - **replays** = max(1, min(32·c, m / 4 / 16 MiB)). A replay holds one
 //!   decompressed chunk (at most a few MiB) and a read-ahead of messages; its
 //!   reading runs in short bursts on the blocking pool, so what bounds it is memory
@@ -99,6 +104,27 @@ fn connections_for(sessions: usize, fd_limit: u64) -> usize {
         .max(16)
 }
 
+/// Fewest connections one peer address may hold in the default per-peer limit: a
+/// browser opens up to six HTTP/1.1 connections to one origin (the console's
+/// gRPC-web calls and streams each hold one), and the command-line client one
+/// each run, so eight let a trainee's browser and a tool or two share an address
+/// even on the smallest server (16 connections).
+pub const MIN_CONNECTIONS_PER_PEER: usize = 8;
+
+/// The default per-peer connection limit for a server of `connections`
+/// connections: a quarter of them, at least [`MIN_CONNECTIONS_PER_PEER`]. At
+/// most four addresses can fill the server (a peer that holds connections without
+/// using them leaves three quarters to everyone else), while a lab of trainees
+/// behind one NAT address still gets a quarter of the server (80 connections of
+/// the 320 of a 2-core default). Loopback peers are not counted per address
+/// ([`connections`](super::connections)): a proxy on the same host brings every
+/// client from loopback, and any local process may pick any address of
+/// 127.0.0.0/8, so there the limit would refuse honest clients and not bind
+/// anyone else; the global limit still does.
+pub fn connections_per_peer_for(connections: usize) -> usize {
+    (connections / 4).max(MIN_CONNECTIONS_PER_PEER)
+}
+
 /// Limits on what a server takes on at once (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Capacity {
@@ -106,6 +132,9 @@ pub struct Capacity {
     pub sessions: usize,
     /// Open connections (`--max-connections`).
     pub connections: usize,
+    /// Open connections of one peer address (`--max-connections-per-peer`);
+    /// loopback peers are not counted.
+    pub connections_per_peer: usize,
     /// Replays streaming at once (`--max-replays`).
     pub replays: usize,
 }
@@ -124,17 +153,30 @@ impl Capacity {
         Capacity {
             sessions,
             connections,
+            connections_per_peer: connections_per_peer_for(connections),
             replays,
         }
     }
 
-    /// These defaults with `sessions` sessions, and the connection default that
-    /// follows from it.
+    /// These defaults with `sessions` sessions, and the connection defaults that
+    /// follow from it.
     pub fn with_sessions(self, sessions: usize, machine: Machine) -> Self {
+        let connections = connections_for(sessions, machine.fd_limit);
         Capacity {
             sessions,
-            connections: connections_for(sessions, machine.fd_limit),
+            connections,
+            connections_per_peer: connections_per_peer_for(connections),
             replays: self.replays,
+        }
+    }
+
+    /// These limits with `connections` connections, and the per-peer default
+    /// that follows from it.
+    pub fn with_connections(self, connections: usize) -> Self {
+        Capacity {
+            connections,
+            connections_per_peer: connections_per_peer_for(connections),
+            ..self
         }
     }
 
@@ -307,7 +349,25 @@ mod tests {
         });
         assert_eq!(c.sessions, 32);
         assert_eq!(c.connections, 8 * 32 + 64);
+        assert_eq!(c.connections_per_peer, 80);
         assert_eq!(c.replays, 64);
+    }
+
+    #[test]
+    fn one_peer_gets_a_quarter_of_the_connections_and_never_fewer_than_a_browser_needs() {
+        assert_eq!(connections_per_peer_for(320), 80);
+        assert_eq!(connections_per_peer_for(16), MIN_CONNECTIONS_PER_PEER);
+        assert_eq!(connections_per_peer_for(1), MIN_CONNECTIONS_PER_PEER);
+        let machine = Machine {
+            cores: 2,
+            memory_bytes: 16 * GIB,
+            fd_limit: 1 << 20,
+        };
+        let c = Capacity::for_machine(machine).with_sessions(4, machine);
+        assert_eq!(c.connections, 8 * 4 + 64);
+        assert_eq!(c.connections_per_peer, 24);
+        let c = c.with_connections(1000);
+        assert_eq!(c.connections_per_peer, 250);
     }
 
     #[test]

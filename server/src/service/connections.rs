@@ -5,6 +5,17 @@
 //!   is accepted and closed at once (the peer sees the connection reset or closed),
 //!   so that it cannot hold a file descriptor; each refusal answers one connection
 //!   attempt, so refusing cannot spin.
+//! - **Counted per peer.** Past [`ConnectionLimits::per_peer`] open connections from
+//!   one address, a new one from it is closed the same way, so that one peer
+//!   (connections that trickle headers, or say nothing until they are idle) cannot
+//!   take every slot and refuse everyone else. An IPv6 peer is counted by its /64
+//!   (a host holds a whole /64 and may pick any address of it), an IPv4-mapped one
+//!   as IPv4. Loopback peers are not counted per address: a proxy on the same host
+//!   brings every client from loopback, and any local process may pick any address
+//!   of 127.0.0.0/8, so a per-address count there would refuse honest clients and
+//!   not bind anyone; the global limit still applies. Each refused peer is logged
+//!   once per [`REFUSAL_LOG_INTERVAL`], at most [`REFUSAL_LOG_PEERS`] peers an
+//!   interval, then one line sums the interval up ([`PeerRefusals`]).
 //! - **Out of file descriptors.** `accept` failing with `EMFILE`/`ENFILE` leaves the
 //!   pending connection in the kernel's backlog, so an immediate retry fails the
 //!   same way: the loop sleeps [`FD_BACKOFF_MIN`], doubling to [`FD_BACKOFF_MAX`],
@@ -26,8 +37,10 @@
 //! [`ConnectionLimits::keepalive_timeout`]) is hyper's and set on tonic's builder;
 //! it finds a peer that vanished while a stream is open.
 
+use std::collections::HashMap;
 use std::future::Future;
 use std::io;
+use std::net::{IpAddr, Ipv6Addr};
 use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -49,11 +62,22 @@ pub const FD_BACKOFF_MIN: Duration = Duration::from_millis(50);
 /// to serve again once descriptors free up.
 pub const FD_BACKOFF_MAX: Duration = Duration::from_secs(1);
 
+/// How long a peer refused past its limit is logged once for, and how often the
+/// refusals of an interval are summed up in one line.
+pub const REFUSAL_LOG_INTERVAL: Duration = Duration::from_secs(10);
+/// Most peers logged by address in one [`REFUSAL_LOG_INTERVAL`]; the others are
+/// only counted in the interval's summary, so that many peers cannot grow the log
+/// (nor the memory of who was logged) without bound.
+pub const REFUSAL_LOG_PEERS: usize = 16;
+
 /// Limits on the server's connections.
 #[derive(Clone, Copy, Debug)]
 pub struct ConnectionLimits {
     /// Most connections open at once (`--max-connections`).
     pub max: usize,
+    /// Most connections open at once from one peer address, loopback excepted
+    /// (`--max-connections-per-peer`).
+    pub per_peer: usize,
     /// A connection with no open stream this long is closed (`--idle-connection`).
     pub idle: Duration,
     /// HTTP/2 PING interval on a connection.
@@ -149,6 +173,150 @@ impl OpenCount {
     }
 }
 
+/// The address a peer is counted under, `None` for loopback (not counted per
+/// peer): an IPv4-mapped IPv6 address as IPv4, an IPv6 one as its /64.
+fn peer_key(ip: IpAddr) -> Option<IpAddr> {
+    let ip = ip.to_canonical();
+    if ip.is_loopback() {
+        return None;
+    }
+    Some(match ip {
+        IpAddr::V4(_) => ip,
+        IpAddr::V6(v6) => IpAddr::V6(Ipv6Addr::from(u128::from(v6) & !(u64::MAX as u128))),
+    })
+}
+
+/// Counts the open connections of each peer address (only those with one open:
+/// at most the server's connection limit of entries).
+#[derive(Debug, Default)]
+pub struct PeerCounts(Mutex<HashMap<IpAddr, usize>>);
+
+impl PeerCounts {
+    /// Connections open now from the peer counted as `key`.
+    pub fn get(&self, key: IpAddr) -> usize {
+        let counts = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        counts.get(&key).copied().unwrap_or(0)
+    }
+
+    /// A slot for peer `key` if it has fewer than `max` open.
+    fn take(self: &Arc<Self>, key: IpAddr, max: usize) -> Option<PeerSlot> {
+        let mut counts = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let n = counts.entry(key).or_insert(0);
+        if *n >= max {
+            if *n == 0 {
+                counts.remove(&key);
+            }
+            return None;
+        }
+        *n += 1;
+        Some(PeerSlot {
+            counts: self.clone(),
+            key,
+        })
+    }
+}
+
+/// One connection of a peer, released when dropped.
+#[derive(Debug)]
+struct PeerSlot {
+    counts: Arc<PeerCounts>,
+    key: IpAddr,
+}
+
+impl Drop for PeerSlot {
+    fn drop(&mut self) {
+        let mut counts = self.counts.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(n) = counts.get_mut(&self.key) {
+            *n -= 1;
+            if *n == 0 {
+                counts.remove(&self.key);
+            }
+        }
+    }
+}
+
+/// The refusals of peers past their limit in the current
+/// [`REFUSAL_LOG_INTERVAL`]: the first of each peer is logged (up to
+/// [`REFUSAL_LOG_PEERS`] peers), and at the interval's end one line sums them up.
+#[derive(Debug)]
+struct PeerRefusals {
+    since: Instant,
+    /// Peers logged this interval, and how many of their connections were refused.
+    logged: HashMap<IpAddr, u64>,
+    /// Connections refused this interval from peers past [`REFUSAL_LOG_PEERS`].
+    unlogged: u64,
+}
+
+/// What [`PeerRefusals`] says of an interval that ended.
+#[derive(Debug, PartialEq, Eq)]
+struct RefusalSummary {
+    connections: u64,
+    /// Peers logged by address; more may have been refused unnamed.
+    named_peers: usize,
+    /// Connections refused from peers not named.
+    unnamed: u64,
+}
+
+impl PeerRefusals {
+    fn new(now: Instant) -> Self {
+        PeerRefusals {
+            since: now,
+            logged: HashMap::new(),
+            unlogged: 0,
+        }
+    }
+
+    /// When the current interval ends, if it holds refusals to sum up.
+    fn due(&self) -> Option<Instant> {
+        (!self.logged.is_empty()).then_some(self.since + REFUSAL_LOG_INTERVAL)
+    }
+
+    /// Ends the interval if it is over: its summary, if it refused anything.
+    fn roll(&mut self, now: Instant) -> Option<RefusalSummary> {
+        if now < self.since + REFUSAL_LOG_INTERVAL {
+            return None;
+        }
+        let summary = (!self.logged.is_empty()).then(|| RefusalSummary {
+            connections: self.logged.values().sum::<u64>() + self.unlogged,
+            named_peers: self.logged.len(),
+            unnamed: self.unlogged,
+        });
+        *self = PeerRefusals::new(now);
+        summary
+    }
+
+    /// Counts a refusal of `peer`: `true` if it is to be logged (its first this
+    /// interval, and room for its address).
+    fn refuse(&mut self, peer: IpAddr) -> bool {
+        if let Some(n) = self.logged.get_mut(&peer) {
+            *n += 1;
+            return false;
+        }
+        if self.logged.len() >= REFUSAL_LOG_PEERS {
+            self.unlogged += 1;
+            return false;
+        }
+        self.logged.insert(peer, 1);
+        true
+    }
+}
+
+/// Logs the summary of an interval of refusals.
+fn log_summary(summary: RefusalSummary, per_peer: usize) {
+    tracing::warn!(
+        "refused {} connections in the last {} s from peers at their limit of {per_peer} \
+         (--max-connections-per-peer): {} peers named above{}",
+        summary.connections,
+        REFUSAL_LOG_INTERVAL.as_secs(),
+        summary.named_peers,
+        if summary.unnamed > 0 {
+            format!(", {} connections from others", summary.unnamed)
+        } else {
+            String::new()
+        }
+    );
+}
+
 /// One counted connection, released when dropped.
 #[derive(Debug)]
 struct Slot(Arc<OpenCount>);
@@ -169,6 +337,8 @@ pub struct Conn {
     armed_at: Option<u64>,
     severed: Pin<Box<WaitForCancellationFutureOwned>>,
     _slot: Slot,
+    /// Its peer's count; `None` for loopback.
+    _peer: Option<PeerSlot>,
 }
 
 impl Conn {
@@ -290,9 +460,9 @@ fn out_of_descriptors(e: &io::Error) -> bool {
     )
 }
 
-/// The connections `listener` accepts, counted and limited by `limits`, each
-/// severed when `severance` is cut (see the module documentation). The loop runs
-/// on its own task until the stream is dropped.
+/// The connections `listener` accepts, counted and limited by `limits` (in all, in
+/// `open`, and per peer), each severed when `severance` is cut (see the module
+/// documentation). The loop runs on its own task until the stream is dropped.
 pub fn incoming(
     listener: TcpListener,
     limits: ConnectionLimits,
@@ -301,6 +471,8 @@ pub fn incoming(
 ) -> ReceiverStream<io::Result<Conn>> {
     let (tx, rx) = mpsc::channel(1);
     let local = listener.local_addr().ok();
+    let peers = Arc::new(PeerCounts::default());
+    let mut refusals = PeerRefusals::new(Instant::now());
     tokio::spawn(async move {
         let mut backoff = FD_BACKOFF_MIN;
         // When a refusal or a backoff was last logged: at most one line a second.
@@ -314,8 +486,18 @@ pub fn incoming(
             due
         };
         loop {
+            let summary_due = refusals.due();
             let accepted = tokio::select! {
                 _ = tx.closed() => return,
+                // An interval of refusals ends even if nobody connects after it.
+                _ = tokio::time::sleep_until(summary_due.unwrap_or_else(Instant::now)),
+                    if summary_due.is_some() =>
+                {
+                    if let Some(summary) = refusals.roll(Instant::now()) {
+                        log_summary(summary, limits.per_peer);
+                    }
+                    continue;
+                }
                 accepted = listener.accept() => accepted,
             };
             let (tcp, peer) = match accepted {
@@ -338,6 +520,29 @@ pub fn incoming(
                 Err(_) => continue,
             };
             backoff = FD_BACKOFF_MIN;
+            if let Some(summary) = refusals.roll(Instant::now()) {
+                log_summary(summary, limits.per_peer);
+            }
+            // Counted per peer first: a peer at its limit takes no global slot.
+            let peer_slot = match peer_key(peer.ip()) {
+                None => None,
+                Some(key) => match peers.take(key, limits.per_peer) {
+                    Some(slot) => Some(slot),
+                    None => {
+                        if refusals.refuse(key) {
+                            tracing::warn!(
+                                %peer,
+                                "refusing connections from {key}: {} open, its limit \
+                                 (--max-connections-per-peer); said once in {} s",
+                                limits.per_peer,
+                                REFUSAL_LOG_INTERVAL.as_secs()
+                            );
+                        }
+                        drop(tcp);
+                        continue;
+                    }
+                },
+            };
             let Some(slot) = open.take(limits.max) else {
                 if quiet() {
                     tracing::warn!(
@@ -364,6 +569,7 @@ pub fn incoming(
                 armed_at: None,
                 severed: Box::pin(severance.0.clone().cancelled_owned()),
                 _slot: slot,
+                _peer: peer_slot,
             };
             if tx.send(Ok(conn)).await.is_err() {
                 return;
@@ -463,6 +669,74 @@ mod tests {
         drop(a);
         assert_eq!(open.get(), 1);
         assert!(open.take(2).is_some());
+    }
+
+    #[test]
+    fn a_peer_is_counted_by_address_loopback_not_at_all() {
+        let ip = |s: &str| s.parse::<IpAddr>().unwrap();
+        assert_eq!(peer_key(ip("127.0.0.1")), None);
+        assert_eq!(peer_key(ip("127.3.2.1")), None);
+        assert_eq!(peer_key(ip("::1")), None);
+        // Loopback through a dual-stack listener.
+        assert_eq!(peer_key(ip("::ffff:127.0.0.1")), None);
+        assert_eq!(peer_key(ip("192.0.2.7")), Some(ip("192.0.2.7")));
+        assert_eq!(peer_key(ip("::ffff:192.0.2.7")), Some(ip("192.0.2.7")));
+        // Any address of one /64 is the same peer; another /64 is another.
+        assert_eq!(
+            peer_key(ip("2001:db8:1:2:aaaa::1")),
+            Some(ip("2001:db8:1:2::"))
+        );
+        assert_eq!(
+            peer_key(ip("2001:db8:1:2:ffff:ffff:ffff:ffff")),
+            Some(ip("2001:db8:1:2::"))
+        );
+        assert_eq!(peer_key(ip("2001:db8:1:3::1")), Some(ip("2001:db8:1:3::")));
+    }
+
+    #[test]
+    fn a_peers_count_never_passes_its_limit_and_others_are_counted_apart() {
+        let counts = Arc::new(PeerCounts::default());
+        let (a, b) = ("192.0.2.1".parse().unwrap(), "192.0.2.2".parse().unwrap());
+        let first = counts.take(a, 2).unwrap();
+        let _second = counts.take(a, 2).unwrap();
+        assert!(counts.take(a, 2).is_none());
+        assert_eq!(counts.get(a), 2);
+        let other = counts.take(b, 2).unwrap();
+        drop(first);
+        assert_eq!(counts.get(a), 1);
+        assert!(counts.take(a, 2).is_some());
+        // A peer with nothing open leaves no entry behind.
+        drop(other);
+        assert!(!counts.0.lock().unwrap().contains_key(&b));
+    }
+
+    #[test]
+    fn refusals_are_logged_once_per_peer_and_interval_and_summed_up() {
+        let start = Instant::now();
+        let mut refusals = PeerRefusals::new(start);
+        assert_eq!(refusals.due(), None, "nothing to sum up");
+        let peer = |i: u32| IpAddr::from(std::net::Ipv4Addr::from(0xc000_0200 + i));
+        assert!(refusals.refuse(peer(0)));
+        for _ in 0..1000 {
+            assert!(!refusals.refuse(peer(0)), "said once");
+        }
+        for i in 1..100 {
+            assert_eq!(refusals.refuse(peer(i)), i < REFUSAL_LOG_PEERS as u32);
+        }
+        assert_eq!(refusals.logged.len(), REFUSAL_LOG_PEERS);
+        assert_eq!(refusals.due(), Some(start + REFUSAL_LOG_INTERVAL));
+        assert_eq!(refusals.roll(start + REFUSAL_LOG_INTERVAL / 2), None);
+        assert_eq!(
+            refusals.roll(start + REFUSAL_LOG_INTERVAL),
+            Some(RefusalSummary {
+                connections: 1000 + 100,
+                named_peers: REFUSAL_LOG_PEERS,
+                unnamed: 100 - REFUSAL_LOG_PEERS as u64,
+            })
+        );
+        // A new interval: the peer is said again, once.
+        assert!(refusals.refuse(peer(0)));
+        assert!(!refusals.refuse(peer(0)));
     }
 
     #[test]

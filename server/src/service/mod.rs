@@ -227,6 +227,7 @@ pub async fn serve(
 
     let limits = connections::ConnectionLimits {
         max: config.capacity.connections,
+        per_peer: config.capacity.connections_per_peer,
         idle: config
             .idle_connection
             .unwrap_or(connections::DEFAULT_IDLE_CONNECTION),
@@ -252,6 +253,7 @@ pub async fn serve(
         tokens = config.tokens.is_some(),
         sessions = config.capacity.sessions,
         connections = config.capacity.connections,
+        connections_per_peer = config.capacity.connections_per_peer,
         replays = config.capacity.replays,
         "serving laparo.v1"
     );
