@@ -152,8 +152,14 @@ pub enum ConnectError {
     /// The peer accepted the connection and said nothing in time.
     #[error("no answer from {url} within {} s: is it a laparo server?", after.as_secs_f64())]
     NoAnswer { url: String, after: Duration },
-    /// The peer accepted the connection and closed it without a word.
-    #[error("{url} closed the connection without answering: is it a laparo server?")]
+    /// The peer accepted the connection and closed it without a word: what a
+    /// laparo server does with a connection past its limits, and what a server of
+    /// another kind may do.
+    #[error(
+        "{url} closed the connection without answering: a laparo server does that at its \
+         connection limit (--max-connections, or --max-connections-per-peer for connections \
+         from this address), so try again later; or it is not a laparo server"
+    )]
     Closed { url: String },
     /// The peer speaks something else than gRPC (HTTP/1, TLS where plain HTTP/2 was
     /// expected, or HTTP/2 without gRPC).

@@ -2,6 +2,7 @@
 //! `--max-connections-per-peer` its new connections are closed as they come, while
 //! those it holds are served, and it is served again once one closes. Loopback is
 //! not counted per address (a proxy on the same host brings every client from it).
+//! A client refused at a full server is told the limit may be why.
 //!
 //! A peer that is not loopback needs an address of this machine that is not: the
 //! server listens on the one the machine routes from, and the test connects to it
@@ -11,6 +12,7 @@
 use std::net::{IpAddr, SocketAddr, UdpSocket};
 use std::time::Duration;
 
+use laparo_client::connect::{ConnectConfig, connect};
 use laparo_proto::v1;
 use laparo_server::service::ServeConfig;
 use laparo_server::service::capacity::Capacity;
@@ -126,6 +128,35 @@ async fn loopback_is_not_counted_per_peer() {
     }
     for ch in &held {
         list(ch.clone()).await.unwrap();
+    }
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_refused_at_a_full_server_is_told_the_limit_may_be_why() {
+    let server = TestServer::start(ServeConfig {
+        capacity: Capacity {
+            connections: 1,
+            ..limits()
+        },
+        ..ServeConfig::default()
+    })
+    .await;
+    let _only = served(server.addr).await.unwrap();
+    let url = format!("http://{}", server.addr);
+    let refused = connect(&ConnectConfig::new(url.clone()))
+        .await
+        .expect_err("the server is full");
+    let said = refused.to_string();
+    for words in [
+        url.as_str(),
+        "closed the connection",
+        "connection limit",
+        "--max-connections",
+        "--max-connections-per-peer",
+        "not a laparo server",
+    ] {
+        assert!(said.contains(words), "{said}");
     }
     server.shutdown().await.unwrap();
 }
