@@ -15,6 +15,25 @@ use tonic::{Request, Status, Streaming};
 /// How long a test waits for something a server should do in well under a second.
 pub const WAIT: Duration = Duration::from_secs(20);
 
+/// `attempt`'s answer once it is anything but `code`, trying again every 50 ms for
+/// up to [`WAIT`]: a place given back (a station's, an observer's, a replay slot)
+/// is free only once the server has seen its stream end. The last answer if it
+/// is still `code` then.
+pub async fn once_not<T, F: std::future::Future<Output = Result<T, Status>>>(
+    code: tonic::Code,
+    mut attempt: impl FnMut() -> F,
+) -> Result<T, Status> {
+    let start = std::time::Instant::now();
+    loop {
+        match attempt().await {
+            Err(e) if e.code() == code && start.elapsed() < WAIT => {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            answer => return answer,
+        }
+    }
+}
+
 /// A server serving on `127.0.0.1:<free port>` in this runtime.
 pub struct TestServer {
     pub addr: SocketAddr,

@@ -322,20 +322,9 @@ async fn an_attach_refused_at_the_limit_leaves_no_station_behind() {
     assert_eq!(stations, 1, "only the watching station");
     // With the handle given back, the same trainee attaches and holds `left`.
     drop(watching);
-    let mut taken = None;
-    for _ in 0..50 {
-        match attach(&ch, ALICE, &session).await {
-            Ok(a) => {
-                taken = Some(a);
-                break;
-            }
-            Err(e) if e.code() == Code::ResourceExhausted => {
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-            Err(e) => panic!("{e:?}"),
-        }
-    }
-    assert!(taken.is_some(), "the handle never came back");
+    let _taken = once_not(Code::ResourceExhausted, || attach(&ch, ALICE, &session))
+        .await
+        .expect("the handle never came back");
     assert!(holder(&ch, &session).await.is_some());
 }
 

@@ -3,8 +3,6 @@
 //! again once one ends; slow replays, more than the blocking pool has threads,
 //! starve neither listing nor another replay.
 
-use std::time::Duration;
-
 use laparo_proto::v1;
 use laparo_proto::v1::recordings_client::RecordingsClient;
 use laparo_proto::v1::sessions_client::SessionsClient;
@@ -14,7 +12,7 @@ use laparo_server::service::capacity::Capacity;
 use laparo_tests::recordings::{
     record_press, recorded_messages, recordings_dir, replay_all, replay_request,
 };
-use laparo_tests::server::{TestServer, WAIT};
+use laparo_tests::server::{TestServer, WAIT, once_not};
 use tonic::Code;
 
 fn limits(sessions: usize, replays: usize) -> Capacity {
@@ -186,19 +184,9 @@ async fn a_replay_past_the_limit_is_refused_naming_the_flag_until_one_ends() {
     assert!(refused.message().contains("--max-replays"), "{refused:?}");
     // Once a client goes, its slot is free (when the server has seen it go).
     drop(a);
-    tokio::time::timeout(WAIT, async {
-        loop {
-            match slow_replay(&ch, &name).await {
-                Ok(s) => return s,
-                Err(e) if e.code() == Code::ResourceExhausted => {
-                    tokio::time::sleep(Duration::from_millis(50)).await
-                }
-                Err(e) => panic!("{e:?}"),
-            }
-        }
-    })
-    .await
-    .expect("a slot frees up");
+    once_not(Code::ResourceExhausted, || slow_replay(&ch, &name))
+        .await
+        .expect("a slot frees up");
     server.shutdown().await.unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -133,20 +133,11 @@ async fn leaving_and_joining_again_does_not_refill_the_pose_budget() {
     .unwrap();
     drop(a);
     // The instrument is free again once the first station is gone.
-    let mut again = None;
-    for _ in 0..100 {
-        match join(ch.clone(), None, &session, &["left"]).await {
-            Ok((b, _)) => {
-                again = Some(b);
-                break;
-            }
-            Err(e) if e.code() == Code::AlreadyExists => {
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-            Err(e) => panic!("{e:?}"),
-        }
-    }
-    let mut b = again.expect("left was never free again");
+    let (mut b, _) = once_not(Code::AlreadyExists, || {
+        join(ch.clone(), None, &session, &["left"])
+    })
+    .await
+    .expect("left was never free again");
     b.tx.send(pose("left", away, z, 1)).await.unwrap();
     assert!(
         wait_for(&mut b.rx, WAIT, rate_limited).await.is_some(),

@@ -45,20 +45,9 @@ async fn a_session_takes_a_bounded_number_of_observers_and_stations() {
         "{refused:?}"
     );
     observers.pop();
-    let mut again = None;
-    for _ in 0..100 {
-        match observe(&ch, &session).await {
-            Ok(o) => {
-                again = Some(o);
-                break;
-            }
-            Err(e) if e.code() == Code::ResourceExhausted => {
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-            Err(e) => panic!("{e:?}"),
-        }
-    }
-    assert!(again.is_some(), "the observer's place never came back");
+    let again = once_not(Code::ResourceExhausted, || observe(&ch, &session))
+        .await
+        .expect("the observer's place never came back");
     drop((observers, again));
 
     // Watching stations, each on a connection of its own as stations are.
@@ -78,20 +67,12 @@ async fn a_session_takes_a_bounded_number_of_observers_and_stations() {
     );
     // The refused station claimed nothing: `left` is free for the next one.
     stations.pop();
-    let mut held = None;
-    for _ in 0..100 {
-        match join(server.channel().await, None, &session, &["left"]).await {
-            Ok(s) => {
-                held = Some(s);
-                break;
-            }
-            Err(e) if e.code() == Code::ResourceExhausted => {
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-            Err(e) => panic!("{e:?}"),
-        }
-    }
-    assert!(held.is_some(), "the station's place never came back");
+    let own = server.channel().await;
+    let _held = once_not(Code::ResourceExhausted, || {
+        join(own.clone(), None, &session, &["left"])
+    })
+    .await
+    .expect("the station's place never came back");
     server.shutdown().await.unwrap();
 }
 

@@ -100,15 +100,17 @@ async fn list_server(server: &ConnectConfig) -> Result<(), BoxError> {
         let start = r
             .start
             .map_or(0.0, |t| t.seconds as f64 + t.nanos as f64 * 1e-9);
-        row(
+        let state = server_state(&r);
+        let row = row_text(
             &r.file,
             &r.session_id,
             &r.scene,
             start,
             r.duration_s,
             r.size_bytes,
-            &server_state(&r),
+            &state,
         );
+        say!("{row}");
     }
     if listed.left_out > 0 {
         say!(
@@ -141,20 +143,23 @@ fn list_dir(dir: &Path) -> Result<(), BoxError> {
     header();
     for l in listed {
         match &l.entry {
-            Ok(e) => row(
-                &l.file,
-                &e.session_id,
-                &e.scene,
-                e.start_unix_ns as f64 * 1e-9,
-                e.duration_s,
-                l.size_bytes,
-                match e.state {
-                    FileState::Complete => "complete",
-                    FileState::InProgress => "in progress",
-                    FileState::Unfinished => {
-                        "no footer: still being recorded, or cut short (`recordings recover` completes it)"
-                    }
-                },
+            Ok(e) => say!(
+                "{}",
+                row_text(
+                    &l.file,
+                    &e.session_id,
+                    &e.scene,
+                    e.start_unix_ns as f64 * 1e-9,
+                    e.duration_s,
+                    l.size_bytes,
+                    match e.state {
+                        FileState::Complete => "complete",
+                        FileState::InProgress => "in progress",
+                        FileState::Unfinished => {
+                            "no footer: still being recorded, or cut short (`recordings recover` completes it)"
+                        }
+                    },
+                )
             ),
             Err(e) => say!(
                 "| {} | — | — | — | — | {} | {} |",
@@ -167,32 +172,8 @@ fn list_dir(dir: &Path) -> Result<(), BoxError> {
     Ok(())
 }
 
-/// Prints one row of `laparo recordings list`, from a directory or a server alike.
-fn row(
-    file: &str,
-    session: &str,
-    scene: &str,
-    start_unix_s: f64,
-    duration_s: f64,
-    size_bytes: u64,
-    state: &str,
-) {
-    say!(
-        "{}",
-        row_text(
-            file,
-            session,
-            scene,
-            start_unix_s,
-            duration_s,
-            size_bytes,
-            state
-        )
-    );
-}
-
-/// One row of the listing, with what comes from files (names) escaped
-/// ([`printable`]): a control character in a session or scene name reaches the
+/// One row of `laparo recordings list`, from a directory or a server alike, with
+/// what comes from files (names) escaped ([`printable`]): a control character in a session or scene name reaches the
 /// terminal as its escape.
 fn row_text(
     file: &str,
