@@ -34,9 +34,14 @@ async fn a_session_takes_a_bounded_number_of_observers_and_stations() {
     let server = TestServer::start(ServeConfig::default()).await;
     let ch = server.channel().await;
     let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    // Observers on connections of their own, as many to a connection as it takes.
     let mut observers = Vec::new();
-    for _ in 0..MAX_OBSERVERS_PER_SESSION {
-        observers.push(observe(&ch, &session).await.unwrap());
+    let mut own = server.channel().await;
+    for k in 0..MAX_OBSERVERS_PER_SESSION {
+        if k > 0 && k % MAX_STREAMS_PER_CONNECTION == 0 {
+            own = server.channel().await;
+        }
+        observers.push(observe(&own, &session).await.unwrap());
     }
     let refused = observe(&ch, &session).await.unwrap_err();
     assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
