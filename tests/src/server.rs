@@ -34,6 +34,29 @@ pub async fn once_not<T, F: std::future::Future<Output = Result<T, Status>>>(
     }
 }
 
+/// Sends `request`, raw HTTP/1.1, to `server` on a connection of its own and
+/// returns the answer's head (status line and headers, lower-cased), read up to
+/// the blank line within [`WAIT`].
+pub async fn http_head(server: &TestServer, request: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
+    s.write_all(request.as_bytes()).await.unwrap();
+    let mut out = Vec::new();
+    let mut buf = [0u8; 4096];
+    while !out.windows(4).any(|w| w == b"\r\n\r\n") {
+        let n = tokio::time::timeout(WAIT, s.read(&mut buf))
+            .await
+            .expect("the server answers")
+            .unwrap();
+        if n == 0 {
+            break;
+        }
+        out.extend_from_slice(&buf[..n]);
+    }
+    let text = String::from_utf8_lossy(&out).to_lowercase();
+    text[..text.find("\r\n\r\n").unwrap_or(text.len())].to_string()
+}
+
 /// A server serving on `127.0.0.1:<free port>` in this runtime.
 pub struct TestServer {
     pub addr: SocketAddr,

@@ -10,7 +10,6 @@ use std::time::Duration;
 use laparo_proto::v1;
 use laparo_server::service::{Caller, Role, ServeConfig, Tokens};
 use laparo_tests::server::*;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tonic::Code;
 use tonic::transport::Channel;
 
@@ -328,26 +327,6 @@ async fn an_attach_refused_at_the_limit_leaves_no_station_behind() {
     assert!(holder(&ch, &session).await.is_some());
 }
 
-async fn http(server: &TestServer, request: &str) -> String {
-    let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
-    s.write_all(request.as_bytes()).await.unwrap();
-    let mut out = Vec::new();
-    let mut buf = [0u8; 4096];
-    // The head is all the tests read: stop at the blank line.
-    while !out.windows(4).any(|w| w == b"\r\n\r\n") {
-        let n = tokio::time::timeout(WAIT, s.read(&mut buf))
-            .await
-            .unwrap()
-            .unwrap();
-        if n == 0 {
-            break;
-        }
-        out.extend_from_slice(&buf[..n]);
-    }
-    let text = String::from_utf8_lossy(&out).to_lowercase();
-    text[..text.find("\r\n\r\n").unwrap_or(text.len())].to_string()
-}
-
 fn preflight(origin: &str) -> String {
     format!(
         "OPTIONS /laparo.v1.Scenes/ListScenes HTTP/1.1\r\nhost: x\r\norigin: {origin}\r\naccess-control-request-method: POST\r\naccess-control-request-headers: authorization,content-type,x-grpc-web\r\n\r\n"
@@ -357,12 +336,12 @@ fn preflight(origin: &str) -> String {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cross_origin_calls_are_refused_unless_the_origin_is_allowed() {
     let server = server(&["http://allowed.example:8080"]).await;
-    let refused = http(&server, &preflight("http://evil.example")).await;
+    let refused = http_head(&server, &preflight("http://evil.example")).await;
     assert!(
         !refused.contains("access-control-allow-origin"),
         "{refused}"
     );
-    let allowed = http(&server, &preflight("http://allowed.example:8080")).await;
+    let allowed = http_head(&server, &preflight("http://allowed.example:8080")).await;
     assert!(
         allowed.contains("access-control-allow-origin: http://allowed.example:8080"),
         "{allowed}"
@@ -373,11 +352,11 @@ async fn cross_origin_calls_are_refused_unless_the_origin_is_allowed() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_console_page_needs_no_token_and_the_calls_do() {
     let server = server(&[]).await;
-    let page = http(&server, "GET / HTTP/1.1\r\nhost: x\r\n\r\n").await;
+    let page = http_head(&server, "GET / HTTP/1.1\r\nhost: x\r\n\r\n").await;
     assert!(page.starts_with("http/1.1 200"), "{page}");
     assert!(page.contains("content-type: text/html"), "{page}");
     // A gRPC-web call without a token is refused by the same interceptor.
-    let call = http(
+    let call = http_head(
         &server,
         "POST /laparo.v1.Scenes/ListScenes HTTP/1.1\r\nhost: x\r\ncontent-type: application/grpc-web+proto\r\ncontent-length: 5\r\n\r\n\0\0\0\0\0",
     )

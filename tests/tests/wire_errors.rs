@@ -12,7 +12,6 @@ use laparo_proto::v1;
 use laparo_server::service::{MAX_MESSAGE_BYTES, ServeConfig};
 use laparo_tests::server::*;
 use prost::Message;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tonic::codec::{Codec, DecodeBuf, Decoder, EncodeBuf, Encoder};
 use tonic::codegen::Service;
 use tonic::codegen::http::{self, uri::PathAndQuery};
@@ -245,26 +244,11 @@ async fn a_body_that_is_not_grpc_framing_gets_invalid_argument() {
 /// A gRPC-web text call (`application/grpc-web-text`, the body in base64) to
 /// `Sessions.GetSession` over HTTP/1.1; the response's head, lower-cased.
 async fn grpc_web_text(server: &TestServer, body: &str) -> String {
-    let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
     let request = format!(
         "POST /laparo.v1.Sessions/GetSession HTTP/1.1\r\nhost: x\r\ncontent-type: application/grpc-web-text\r\ncontent-length: {}\r\n\r\n{body}",
         body.len()
     );
-    s.write_all(request.as_bytes()).await.unwrap();
-    let mut out = Vec::new();
-    let mut buf = [0u8; 4096];
-    while !out.windows(4).any(|w| w == b"\r\n\r\n") {
-        let n = tokio::time::timeout(WAIT, s.read(&mut buf))
-            .await
-            .expect("the server answers")
-            .unwrap();
-        if n == 0 {
-            break;
-        }
-        out.extend_from_slice(&buf[..n]);
-    }
-    let text = String::from_utf8_lossy(&out).to_lowercase();
-    text[..text.find("\r\n\r\n").unwrap_or(text.len())].to_string()
+    http_head(server, &request).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
