@@ -29,7 +29,7 @@ use nalgebra::{Point3, Unit, Vector3};
 use super::reader::{ReadError, Recorded, Recording, RecordingMeta};
 use crate::engine::contact::InstrumentPose;
 use crate::engine::scene::{Scene, SceneError};
-use crate::engine::simulation::Simulation;
+use crate::engine::simulation::{Simulation, mesh_path};
 use crate::frame::state::surface_positions;
 use crate::frame::{Frame, Holder, TickOutputs};
 
@@ -168,7 +168,7 @@ impl Resimulator {
         };
         let mut scene = Scene::parse(&meta.scene_toml, &meta.scene, dir.as_deref())?;
         if let MeshFiles::Served(served) = meshes {
-            if served.is_none() && !scene.mesh.file.starts_with("builtin:") {
+            if served.is_none() && mesh_path(&scene).is_some() {
                 return Err(ResimError::MeshNotServed);
             }
             scene.mesh_root = root.map(Path::to_path_buf);
