@@ -1,7 +1,7 @@
 //! The pose rate limit against a real server on loopback: a burst of queued poses
 //! after a network stall is admitted, sustained poses far above the limit close the
-//! stream with `RESOURCE_EXHAUSTED`, and leaving and joining again does not refill
-//! an instrument's budget.
+//! stream with `RESOURCE_EXHAUSTED`, leaving and joining again does not refill
+//! an instrument's budget, and a whole bucket of poses at once is recorded whole.
 
 use std::time::Duration;
 
@@ -9,6 +9,7 @@ use laparo_proto::v1;
 use laparo_proto::v1::server_message::Kind;
 use laparo_server::service::{PoseLimits, ServeConfig};
 use laparo_tests::pressing::{flood_until_closed, front, state_of};
+use laparo_tests::recordings::{create_recorded, recording_server};
 use laparo_tests::server::*;
 use tonic::Code;
 
@@ -144,5 +145,49 @@ async fn leaving_and_joining_again_does_not_refill_the_pose_budget() {
         "the budget was refilled"
     );
     assert_eq!(counts(ch.clone(), &session).await, (2, 5));
+    server.shutdown().await.unwrap();
+}
+
+/// A whole pose budget at once (the default bucket, 10,000 poses, what a station
+/// sends after a 5 s stall) is recorded whole, and so is every tick meanwhile: the
+/// station's intake waits while the recorder drains instead of filling its channel.
+/// Before, the burst overflowed the recorder's 4,096 items and the recording lost
+/// thousands of poses and the frames of the ticks that came with them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_whole_budget_of_poses_at_once_is_recorded_whole() {
+    let (server, ch, _dir) = recording_server("pose_burst").await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let session = create_recorded(&mut sessions).await.session_id;
+    let (mut a, joined) = join(ch.clone(), None, &session, &["left", "right"])
+        .await
+        .unwrap();
+    let f = front(&joined);
+    let away = [f[0], f[1], f[2] + 0.05];
+    let z = [0.0, 0.0, 1.0];
+    let burst = PoseLimits::default().burst as u64;
+    let messages: Vec<_> = (1..=burst)
+        .flat_map(|s| ["left", "right"].map(|i| pose(i, away, z, s)))
+        .collect();
+    for m in messages {
+        a.tx.send(m).await.unwrap();
+    }
+    let applied = wait_for(&mut a.rx, WAIT, |m| {
+        state_of(m, "left").is_some_and(|s| s.pose_sequence == Some(burst))
+    })
+    .await;
+    assert!(applied.is_some(), "the newest pose was never applied");
+    let info = sessions
+        .get_session(v1::GetSessionRequest {
+            session_id: session.clone(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!((info.poses_rejected, info.poses_accepted), (0, 2 * burst));
+    assert_eq!(
+        info.recorder_dropped, 0,
+        "items left out of the recording (most waiting at once: {})",
+        info.recorder_max_backlog
+    );
     server.shutdown().await.unwrap();
 }

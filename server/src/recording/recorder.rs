@@ -28,6 +28,14 @@ use crate::frame::Frame;
 /// and a station reach; a tick's frame is an `Arc`, so a full channel is small.
 pub const CHANNEL_CAPACITY: usize = 4096;
 
+/// The share of the channel poses may fill: past it, a station's intake waits for
+/// the recorder (`service/recorder_room.rs`). A station sends at most its pose
+/// budget at once (10,000 poses after a 5 s stall, under the default limits), more
+/// than the whole channel; the mechanics thread never waits, so what poses leave
+/// free is what keeps its frames: half the channel is two seconds of ticks at
+/// 1 kHz with events.
+pub const POSE_SHARE: f64 = 0.5;
+
 /// Something to record.
 #[derive(Debug)]
 pub enum Item {
@@ -154,6 +162,8 @@ enum Msg {
 /// A session's recorder: the sending side of the channel and the thread's handle.
 pub struct Recorder {
     tx: SyncSender<Msg>,
+    /// Items the channel holds.
+    capacity: usize,
     path: PathBuf,
     shared: Arc<Shared>,
     created: Instant,
@@ -193,6 +203,7 @@ impl Recorder {
         };
         Ok(Recorder {
             tx,
+            capacity,
             path,
             shared,
             created: Instant::now(),
@@ -262,6 +273,26 @@ impl Recorder {
     /// Whether the file was created (it may have failed later).
     pub fn created_file(&self) -> bool {
         self.shared.created.load(Ordering::Relaxed)
+    }
+
+    /// Items handed over and not yet written: what waits in the channel, and the
+    /// one being written.
+    pub fn backlog(&self) -> u64 {
+        let stats = &self.shared.stats;
+        let processed = stats.processed.load(Ordering::Relaxed);
+        stats.sent.load(Ordering::Relaxed).saturating_sub(processed)
+    }
+
+    /// Items written so far: while it grows, the recorder is draining its channel.
+    pub fn processed(&self) -> u64 {
+        self.shared.stats.processed.load(Ordering::Relaxed)
+    }
+
+    /// The backlog at which stations hold their poses back
+    /// ([`POSE_SHARE`] of the channel), so that a burst of poses leaves the rest
+    /// to the ticks' frames and events, which are never held back.
+    pub fn pose_room(&self) -> u64 {
+        (self.capacity as f64 * POSE_SHARE) as u64
     }
 
     pub fn stats(&self) -> &RecorderStats {

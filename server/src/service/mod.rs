@@ -30,6 +30,7 @@ pub mod limits;
 pub mod liveness;
 pub mod observe;
 pub mod read_status;
+pub mod recorder_room;
 pub mod recordings;
 pub mod registry;
 pub mod replay;

@@ -49,6 +49,7 @@ use super::auth::{Role, caller};
 use super::decode_status::contract_status;
 use super::limits::MAX_STATIONS_PER_SESSION;
 use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
+use super::recorder_room::RecorderRoom;
 use super::registry::Registry;
 use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
 use crate::session::{Eviction, PoseIn, RateLimit, Rejection, Session, check_pose};
@@ -480,12 +481,16 @@ async fn receive(
     let (mut window_start, mut rejected, mut rate_limited) = (0.0, 0u32, 0u32);
     let (mut events_this_second, mut unreported) = (0u32, 0u64);
     let mut closing = session.closing();
+    let mut room = RecorderRoom::default();
     loop {
         // A closing session stops reading too, so that the stream ends on both sides.
         // A station whose outgoing stream is gone (an Attach stream cancelled)
-        // has left.
+        // has left. The next message waits while the recorder drains a burst.
         let next = tokio::select! {
-            m = inbound.message() => m,
+            m = async {
+                room.wait(session.recorder()).await;
+                inbound.message().await
+            } => m,
             _ = closing.wait_for(Option::is_some) => return Ending::Ended,
             _ = tx.closed() => return Ending::Ended,
             e = &mut evicted => match e {
