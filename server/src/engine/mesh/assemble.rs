@@ -138,6 +138,13 @@ impl RawMesh {
                     longest_edge,
                 },
             ),
+            Fault::Overflow { tet, largest } => (
+                self.tet_line(tet),
+                MeshErrorKind::OversizedTet {
+                    element: self.element_ids[tet as usize],
+                    largest,
+                },
+            ),
             Fault::FaceShared { face, tets } => (
                 tets.iter().max().and_then(|&t| self.tet_line(t)),
                 MeshErrorKind::FaceSharedByMany {

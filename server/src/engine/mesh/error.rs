@@ -92,6 +92,14 @@ pub enum MeshErrorKind {
         six_volume: f64,
         longest_edge: f64,
     },
+    /// A tetrahedron so large that its edge lengths overflow f64: its corners'
+    /// coordinates reach `largest` (mesh units). Its volume, orientation and
+    /// stiffness cannot be computed.
+    #[error(
+        "element {element} is too large to compute with: its corners reach a \
+         coordinate of {largest:e}, and its edge lengths overflow"
+    )]
+    OversizedTet { element: u64, largest: f64 },
     /// After orientation was normalised, two tetrahedra that share a face lie on the same
     /// side of it: the mesh folds over itself, which no vertex swap can repair.
     #[error(

@@ -210,7 +210,12 @@ impl<'a> Parser<'a> {
             source,
             text_len: text.len(),
             lines: Lines {
-                inner: text.split('\n').enumerate(),
+                // LF or CRLF (the CR is trimmed), or a bare CR in a file that has no
+                // LF at all (old Mac editors): one line a terminator either way, so
+                // the numbers in messages are the editor's.
+                inner: text
+                    .split(if text.contains('\n') { '\n' } else { '\r' })
+                    .enumerate(),
             },
             version: None,
             raw: RawMesh::default(),

@@ -40,6 +40,12 @@ pub(super) enum Fault {
         six_volume: f64,
         longest_edge: f64,
     },
+    /// A tetrahedron whose size overflows f64 arithmetic; `largest` is its largest
+    /// coordinate magnitude.
+    Overflow {
+        tet: u32,
+        largest: f64,
+    },
     /// More than two tetrahedra share `face` (tets in ascending order).
     FaceShared {
         face: [u32; 3],
@@ -112,10 +118,21 @@ pub(super) fn orient(positions: &[Point3<f64>], tets: &mut [[u32; 4]]) -> Result
                 longest_squared = longest_squared.max((p[b] - p[a]).norm_squared());
             }
         }
+        if !(longest_squared.is_finite() && six_volume.is_finite()) {
+            // Coordinates so large that the edges' squares overflow: no measure of
+            // the element is meaningful, and calling it flat would mislead.
+            let largest = p
+                .iter()
+                .flat_map(|q| q.iter().map(|c| c.abs()))
+                .fold(0.0, f64::max);
+            return Err(Fault::Overflow {
+                tet: i as u32,
+                largest,
+            });
+        }
         let longest_edge = longest_squared.sqrt();
         let tolerance = FLAT_TOLERANCE * longest_squared * longest_edge;
-        // A NaN volume (from overflowing coordinates) is rejected too.
-        if six_volume.abs() <= tolerance || six_volume.is_nan() {
+        if six_volume.abs() <= tolerance {
             return Err(Fault::Degenerate {
                 tet: i as u32,
                 six_volume,

@@ -123,6 +123,18 @@ fn whitespace_blank_lines_and_crlf_are_accepted() {
 }
 
 #[test]
+fn bare_cr_line_endings_are_accepted_with_their_line_numbers() {
+    let cr = LIVER.replace('\n', "\r");
+    assert!(!cr.contains('\n'));
+    assert_eq!(load(LIVER), load(&cr));
+    // A fault is reported on the line an editor shows.
+    let mut nodes = TWO_NODES;
+    nodes[2] = "3 0 one 0";
+    let err = fail(&v1(&nodes, &TWO_TETS_V1).replace('\n', "\r"));
+    assert_eq!(err.line, Some(v1_node_line(2)), "{err}");
+}
+
+#[test]
 fn negatively_listed_tets_are_repaired_with_the_same_boundary() {
     let raw = cube_tets();
     let negative = raw

@@ -112,6 +112,41 @@ fn degeneracy_test_is_scale_free() {
 }
 
 #[test]
+fn a_tet_too_large_to_compute_with_is_named_so_not_flat() {
+    // Edges of 1e308 overflow their squares; before, this read "flat tetrahedron:
+    // |6V| = 1e308 is at most 1e-12 × (longest edge inf)³".
+    let mut nodes = TWO_NODES;
+    nodes[1] = "2 1e308 0 0";
+    let err = fail(&v1(&nodes, &TWO_TETS_V1));
+    assert_eq!(
+        err.kind,
+        MeshErrorKind::OversizedTet {
+            element: 1,
+            largest: 1e308
+        },
+        "{err}"
+    );
+    assert_eq!(err.line, Some(v1_element_line(5, 0)));
+    assert!(
+        err.to_string().contains("too large to compute with"),
+        "{err}"
+    );
+    // Edges of 1e110 have finite squares but a volume of 1e330, which overflows.
+    nodes = [
+        "1 0 0 0",
+        "2 1e110 0 0",
+        "3 0 1e110 0",
+        "4 0 0 1e110",
+        "5 1 1 1",
+    ];
+    let err = fail(&v1(&nodes[..4], &TWO_TETS_V1[..1]));
+    assert!(
+        matches!(err.kind, MeshErrorKind::OversizedTet { element: 1, .. }),
+        "{err}"
+    );
+}
+
+#[test]
 fn inverted_beyond_repair() {
     // Node 5 moved to the same side of face 2-3-4 as node 1: element 2 is listed
     // negatively, gets repaired, and then overlaps element 1.
