@@ -15,15 +15,20 @@ use tonic::Code;
 
 const WAIT: Duration = Duration::from_secs(20);
 
-/// The `poses_rejected` and `poses_accepted` counts of `session`.
-async fn counts(ch: tonic::transport::Channel, session: &str) -> (u64, u64) {
-    let info = v1::sessions_client::SessionsClient::new(ch)
+/// What the server says of `session`.
+async fn info(ch: tonic::transport::Channel, session: &str) -> v1::SessionInfo {
+    v1::sessions_client::SessionsClient::new(ch)
         .get_session(v1::GetSessionRequest {
             session_id: session.into(),
         })
         .await
         .unwrap()
-        .into_inner();
+        .into_inner()
+}
+
+/// The `poses_rejected` and `poses_accepted` counts of `session`.
+async fn counts(ch: tonic::transport::Channel, session: &str) -> (u64, u64) {
+    let info = info(ch, session).await;
     (info.poses_rejected, info.poses_accepted)
 }
 
@@ -176,13 +181,7 @@ async fn a_whole_budget_of_poses_at_once_is_recorded_whole() {
     })
     .await;
     assert!(applied.is_some(), "the newest pose was never applied");
-    let info = sessions
-        .get_session(v1::GetSessionRequest {
-            session_id: session.clone(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let info = info(ch.clone(), &session).await;
     assert_eq!((info.poses_rejected, info.poses_accepted), (0, 2 * burst));
     assert_eq!(
         info.recorder_dropped, 0,
