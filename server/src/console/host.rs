@@ -1,0 +1,593 @@
+//! The host a browser's request names, checked on a server without tokens: a
+//! guard against DNS rebinding.
+//!
+//! A server without tokens (the default on loopback) serves whoever reaches it.
+//! CORS keeps the pages of other origins out, but not a page whose own name comes
+//! to point at the server: a page at `http://attacker.example:50051` that the
+//! trainee opens can have its name answered with `127.0.0.1` a moment later (DNS
+//! rebinding), after which its gRPC-web calls reach this server and are, to the
+//! browser, same-origin: no preflight, no CORS. Such a call still names the
+//! attacker's host, since a browser sends the host of the page's URL in `Host`
+//! (HTTP/1.1) or `:authority` (HTTP/2).
+//!
+//! So on a server without tokens, a request that carries `Origin` (a browser's:
+//! every gRPC-web `POST` does) is served only if each host it names (port
+//! ignored, case and a trailing dot too) is
+//! - an IP literal (`127.0.0.1`, `[::1]`): a rebinding needs a name;
+//! - `localhost` or a name ending in `.localhost`, which browsers resolve to
+//!   loopback themselves, never through DNS;
+//! - the host of a `--cors-origin`, or a name given with `--allowed-host` (the
+//!   name the server is reached by on a LAN, say).
+//!
+//! Any other is refused: a gRPC or gRPC-web call with `PERMISSION_DENIED`
+//! (trailers-only, in the request's content type, as tonic-web answers a call
+//! refused before its handler), anything else with HTTP 403; both name the host
+//! and `--allowed-host`. A request naming no host, more than one `Host`, or one
+//! that is not `host[:port]` (or not ASCII) is refused the same way.
+//!
+//! Left alone:
+//! - requests without `Origin`. Native gRPC clients (tonic, grpcurl, the
+//!   `laparo` client) send none: they name the host they were given, not a page's,
+//!   so a DNS answer cannot turn them against the server. Nor does a browser
+//!   navigating to the console's page; its assets hold no secret, and the calls
+//!   the page makes carry `Origin`.
+//! - servers with tokens: a rebinding page has no token, and the authentication
+//!   interceptor refuses its calls (`UNAUTHENTICATED`).
+//!
+//! The layer sits inside the CORS layer: preflights are answered by CORS (a
+//! rebinding page sends none, being same-origin), and a refusal to an allowed
+//! origin carries the CORS headers its page needs to read the status.
+
+use std::future::Future;
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr};
+use std::pin::Pin;
+use std::sync::Arc;
+use std::task::{Context, Poll};
+
+use http::{HeaderMap, HeaderValue, Request, Response, StatusCode, header};
+use tonic::body::Body;
+use tonic::{Code, Status};
+
+/// A host a request names, its port dropped.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Host {
+    /// An IP literal (IPv6 written in brackets).
+    Ip(IpAddr),
+    /// A name, lower-cased, without a trailing dot.
+    Name(String),
+}
+
+impl std::fmt::Display for Host {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Host::Ip(IpAddr::V6(ip)) => write!(f, "[{ip}]"),
+            Host::Ip(ip) => write!(f, "{ip}"),
+            Host::Name(name) => f.write_str(name),
+        }
+    }
+}
+
+/// Most digits of a port (`65535`).
+const PORT_DIGITS: usize = 5;
+
+/// Reads `host[:port]` as `Host` and `:authority` write it: a bracketed IPv6
+/// address, an IPv4 address or a name (letters, digits, `-`, `_`, dot-separated
+/// labels, one trailing dot allowed), then an optional `:` and up to five digits.
+/// `None` for anything else.
+pub fn parse_host(text: &str) -> Option<Host> {
+    let (host, port) = match text.strip_prefix('[') {
+        Some(rest) => {
+            let (inside, after) = rest.split_once(']')?;
+            let port = match after {
+                "" => "",
+                p => p.strip_prefix(':')?,
+            };
+            let ip: Ipv6Addr = inside.parse().ok()?;
+            return valid_port(port).then_some(Host::Ip(IpAddr::V6(ip)));
+        }
+        None => text.split_once(':').unwrap_or((text, "")),
+    };
+    if !valid_port(port) {
+        return None;
+    }
+    let name = host.strip_suffix('.').unwrap_or(host);
+    if let Ok(ip) = name.parse::<Ipv4Addr>() {
+        return Some(Host::Ip(IpAddr::V4(ip)));
+    }
+    let label = |l: &str| {
+        !l.is_empty()
+            && l.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+    };
+    name.split('.')
+        .all(label)
+        .then(|| Host::Name(name.to_ascii_lowercase()))
+}
+
+/// An empty port (`host:` is allowed) or up to five digits.
+fn valid_port(port: &str) -> bool {
+    port.len() <= PORT_DIGITS && port.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// An `--allowed-host` argument that is not a host name.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "--allowed-host `{0}`: a host name (letters, digits, `-`, `_`, `.`), without scheme or port; IP addresses and localhost need none"
+)]
+pub struct AllowedHostError(pub String);
+
+/// Checks a name as `--allowed-host` takes it, and gives it as hosts are
+/// compared: lower-cased, without a trailing dot.
+pub fn parse_allowed_host(name: &str) -> Result<String, AllowedHostError> {
+    match parse_host(name) {
+        Some(Host::Name(n)) if !name.contains(':') => Ok(n),
+        // An IPv4 address is always allowed: harmless to name.
+        Some(Host::Ip(IpAddr::V4(ip))) if !name.contains(':') => Ok(ip.to_string()),
+        _ => Err(AllowedHostError(name.to_string())),
+    }
+}
+
+/// The hosts a browser's request may name on a server without tokens, besides IP
+/// literals and `localhost`.
+#[derive(Clone, Debug, Default)]
+pub struct AllowedHosts {
+    /// Lower-cased, without a trailing dot.
+    names: Vec<String>,
+}
+
+impl AllowedHosts {
+    /// The names of `--allowed-host` and the hosts of `--cors-origin`s (as
+    /// [`super::parse_origin`] takes them; an origin whose host is an IP literal,
+    /// or not `host[:port]`, adds nothing).
+    pub fn new(allowed: &[String], cors_origins: &[String]) -> Result<Self, AllowedHostError> {
+        let mut names = allowed
+            .iter()
+            .map(|n| parse_allowed_host(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        for origin in cors_origins {
+            let rest = origin
+                .strip_prefix("http://")
+                .or_else(|| origin.strip_prefix("https://"));
+            if let Some(Host::Name(n)) = rest.and_then(parse_host) {
+                names.push(n);
+            }
+        }
+        Ok(AllowedHosts { names })
+    }
+
+    /// Whether a browser's request may name `host`.
+    pub fn allows(&self, host: &Host) -> bool {
+        match host {
+            Host::Ip(_) => true,
+            Host::Name(n) => {
+                n == "localhost" || n.ends_with(".localhost") || self.names.contains(n)
+            }
+        }
+    }
+
+    /// Why `request` is refused, if it is: it carries `Origin` and names a host
+    /// not allowed, or none it can be checked by.
+    fn refusal<B>(&self, request: &Request<B>) -> Option<Refusal> {
+        if !request.headers().contains_key(header::ORIGIN) {
+            return None;
+        }
+        let mut hosts = request.headers().get_all(header::HOST).iter();
+        let host_header = hosts.next();
+        if hosts.next().is_some() {
+            return Some(Refusal::ManyHosts);
+        }
+        // HTTP/2's `:authority`, or HTTP/1.1's absolute-form target.
+        let authority = request.uri().authority().map(|a| a.host().as_bytes());
+        if authority.is_none() && host_header.is_none() {
+            return Some(Refusal::NoHost);
+        }
+        authority
+            .into_iter()
+            .chain(host_header.map(HeaderValue::as_bytes))
+            .find_map(|bytes| self.check(bytes).err())
+    }
+
+    /// One host as the request writes it.
+    fn check(&self, bytes: &[u8]) -> Result<(), Refusal> {
+        let text = std::str::from_utf8(bytes)
+            .ok()
+            .filter(|t| t.is_ascii())
+            .ok_or(Refusal::NotAscii)?;
+        match parse_host(text) {
+            None => Err(Refusal::Malformed(shortened(text))),
+            Some(host) if self.allows(&host) => Ok(()),
+            Some(host) => Err(Refusal::NotAllowed(host.to_string())),
+        }
+    }
+}
+
+/// Longest part of a malformed host a refusal repeats, characters.
+const ECHOED_CHARS: usize = 64;
+
+/// `text`, cut to [`ECHOED_CHARS`] (it is ASCII).
+fn shortened(text: &str) -> String {
+    if text.len() <= ECHOED_CHARS {
+        text.to_string()
+    } else {
+        format!("{}…", &text[..ECHOED_CHARS])
+    }
+}
+
+/// Why a browser's request is refused.
+#[derive(Debug, PartialEq)]
+enum Refusal {
+    /// A name that is not allowed.
+    NotAllowed(String),
+    /// A `Host` or `:authority` that is not `host[:port]`.
+    Malformed(String),
+    NotAscii,
+    NoHost,
+    ManyHosts,
+}
+
+/// What every refusal but a name not allowed adds.
+const WHY: &str = "a browser's request to a server without tokens must name the host it is for (a guard against DNS rebinding; see --allowed-host)";
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refusal::NotAllowed(name) => write!(
+                f,
+                "host `{name}` is not allowed for a browser's request to a server without tokens \
+                 (a guard against DNS rebinding): open the console by IP address or localhost, \
+                 or start the server with --allowed-host {name}"
+            ),
+            Refusal::Malformed(text) => write!(f, "the host `{text}` is not host[:port]: {WHY}"),
+            Refusal::NotAscii => write!(f, "the request's Host is not ASCII: {WHY}"),
+            Refusal::NoHost => write!(f, "the request names no host: {WHY}"),
+            Refusal::ManyHosts => write!(f, "the request has more than one Host: {WHY}"),
+        }
+    }
+}
+
+/// The answer to a refused request: for a gRPC or gRPC-web call (its content
+/// type `application/grpc…`), `PERMISSION_DENIED` in the headers
+/// (trailers-only), in the call's content type; otherwise HTTP 403, the message
+/// as text.
+fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
+    let grpc = request
+        .get(header::CONTENT_TYPE)
+        .filter(|v| v.as_bytes().starts_with(b"application/grpc"));
+    let Some(content_type) = grpc else {
+        let mut response = Response::new(Body::new(format!("{message}\n")));
+        *response.status_mut() = StatusCode::FORBIDDEN;
+        response.headers_mut().insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/plain; charset=utf-8"),
+        );
+        return response;
+    };
+    let mut response = Response::new(Body::default());
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, content_type.clone());
+    // The message is percent-encoded, so it can always be a header value; if it
+    // could not, the code alone.
+    if Status::permission_denied(message)
+        .add_header(headers)
+        .is_err()
+    {
+        headers.insert(
+            "grpc-status",
+            HeaderValue::from(Code::PermissionDenied as i32),
+        );
+    }
+    response
+}
+
+/// The layer of [`HostCheck`].
+#[derive(Clone, Debug)]
+pub struct HostCheckLayer {
+    allowed: Option<Arc<AllowedHosts>>,
+}
+
+impl HostCheckLayer {
+    /// Checks browsers' requests against `allowed`; `None` (a server with
+    /// tokens) checks nothing.
+    pub fn new(allowed: Option<AllowedHosts>) -> Self {
+        HostCheckLayer {
+            allowed: allowed.map(Arc::new),
+        }
+    }
+}
+
+impl<S> tower_layer::Layer<S> for HostCheckLayer {
+    type Service = HostCheck<S>;
+
+    fn layer(&self, inner: S) -> HostCheck<S> {
+        HostCheck {
+            inner,
+            allowed: self.allowed.clone(),
+        }
+    }
+}
+
+/// Refuses a browser's request that names a host not allowed (see the module);
+/// passes every other request to the service it wraps.
+#[derive(Clone, Debug)]
+pub struct HostCheck<S> {
+    inner: S,
+    allowed: Option<Arc<AllowedHosts>>,
+}
+
+type BoxFuture<T> = Pin<Box<dyn Future<Output = T> + Send>>;
+
+impl<S, ReqBody> tower_service::Service<Request<ReqBody>> for HostCheck<S>
+where
+    S: tower_service::Service<Request<ReqBody>, Response = Response<Body>>,
+    S::Future: Send + 'static,
+    S::Error: Send + 'static,
+{
+    type Response = Response<Body>;
+    type Error = S::Error;
+    type Future = BoxFuture<Result<Response<Body>, S::Error>>;
+
+    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), S::Error>> {
+        self.inner.poll_ready(cx)
+    }
+
+    fn call(&mut self, request: Request<ReqBody>) -> Self::Future {
+        let refusal = self.allowed.as_ref().and_then(|a| a.refusal(&request));
+        match refusal {
+            None => Box::pin(self.inner.call(request)),
+            Some(refusal) => {
+                let message = refusal.to_string();
+                tracing::debug!(%message, "browser request refused");
+                let response = refused(request.headers(), &message);
+                Box::pin(std::future::ready(Ok(response)))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn name(n: &str) -> Option<Host> {
+        Some(Host::Name(n.to_string()))
+    }
+
+    fn ip(a: &str) -> Option<Host> {
+        Some(Host::Ip(a.parse().unwrap()))
+    }
+
+    #[test]
+    fn hosts_are_read_without_port_case_or_trailing_dot() {
+        for (text, host) in [
+            ("127.0.0.1", ip("127.0.0.1")),
+            ("127.0.0.1:50051", ip("127.0.0.1")),
+            ("127.0.0.1.:50051", ip("127.0.0.1")),
+            ("10.1.2.3:", ip("10.1.2.3")),
+            ("[::1]", ip("::1")),
+            ("[::1]:50051", ip("::1")),
+            ("[fe80::1:2]:8080", ip("fe80::1:2")),
+            ("[::ffff:127.0.0.1]:1", ip("::ffff:127.0.0.1")),
+            ("localhost", name("localhost")),
+            ("LocalHost.:50051", name("localhost")),
+            ("Attacker.EXAMPLE:50051", name("attacker.example")),
+            ("attacker.example.", name("attacker.example")),
+            ("console.localhost", name("console.localhost")),
+            ("my_host-1", name("my_host-1")),
+            // Not an address (leading zeros, too few parts): a name.
+            ("127.000.000.001", name("127.000.000.001")),
+            ("127.1", name("127.1")),
+        ] {
+            assert_eq!(parse_host(text), host, "{text}");
+        }
+    }
+
+    #[test]
+    fn what_is_not_host_and_port_is_none() {
+        for bad in [
+            "",
+            ":50051",
+            ".",
+            "..",
+            ".example",
+            "a..example",
+            "::1",
+            "[::1",
+            "[::1]x",
+            "[::1]:x",
+            "[::1]:123456",
+            "[127.0.0.1]",
+            "[fe80::1%25eth0]",
+            "[]",
+            "example:port",
+            "example:123456",
+            "example:80:80",
+            "exa mple",
+            "user@example",
+            "example/path",
+            "*",
+        ] {
+            assert_eq!(parse_host(bad), None, "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn allowed_are_addresses_localhost_and_the_names_given() {
+        let allowed = AllowedHosts::new(
+            &["LAPARO.lan.".to_string()],
+            &[
+                "http://console.example:5173".to_string(),
+                "https://[::1]:8443".to_string(),
+            ],
+        )
+        .unwrap();
+        for good in [
+            "127.0.0.1",
+            "192.168.1.20",
+            "[::1]",
+            "[2001:db8::1]",
+            "localhost",
+            "station.localhost",
+            "laparo.lan",
+            "console.example",
+        ] {
+            assert!(allowed.allows(&parse_host(good).unwrap()), "{good}");
+        }
+        for bad in [
+            "attacker.example",
+            "notlocalhost",
+            "localhost.example",
+            "laparo.lan.example",
+            "lan",
+            "127.0.0.1.nip.io",
+        ] {
+            assert!(!allowed.allows(&parse_host(bad).unwrap()), "{bad}");
+        }
+        assert!(!AllowedHosts::default().allows(&parse_host("laparo.lan").unwrap()));
+    }
+
+    #[test]
+    fn allowed_host_arguments_are_names_without_port() {
+        for (arg, normal) in [
+            ("laparo.lan", "laparo.lan"),
+            ("Laparo.LAN.", "laparo.lan"),
+            ("10.0.0.1", "10.0.0.1"),
+        ] {
+            assert_eq!(parse_allowed_host(arg).unwrap(), normal, "{arg}");
+        }
+        for bad in [
+            "",
+            "*",
+            "*.example",
+            "laparo.lan:50051",
+            "http://laparo.lan",
+            "[::1]",
+            "a b",
+        ] {
+            let e = parse_allowed_host(bad).unwrap_err();
+            assert!(e.to_string().contains("--allowed-host"), "{bad}: {e}");
+        }
+        assert!(AllowedHosts::new(&["x:1".to_string()], &[]).is_err());
+    }
+
+    fn request(headers: &[(&str, &[u8])], uri: &str) -> Request<()> {
+        let mut r = Request::builder().method("POST").uri(uri);
+        for (n, v) in headers {
+            r = r.header(*n, HeaderValue::from_bytes(v).unwrap());
+        }
+        r.body(()).unwrap()
+    }
+
+    const ORIGIN: (&str, &[u8]) = ("origin", b"http://attacker.example:50051");
+
+    #[test]
+    fn browser_requests_are_checked_by_every_host_they_name() {
+        let allowed = AllowedHosts::default();
+        let path = "/laparo.v1.Scenes/ListScenes";
+        let check = |headers: &[(&str, &[u8])], uri: &str| allowed.refusal(&request(headers, uri));
+        // Without Origin (native gRPC, a navigation): nothing is checked.
+        assert_eq!(check(&[("host", b"attacker.example:50051")], path), None);
+        assert_eq!(check(&[], path), None);
+        // HTTP/1.1: the Host header.
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"attacker.example:50051")], path),
+            Some(Refusal::NotAllowed("attacker.example".into()))
+        );
+        assert_eq!(check(&[ORIGIN, ("host", b"127.0.0.1:50051")], path), None);
+        assert_eq!(check(&[ORIGIN, ("host", b"localhost:50051")], path), None);
+        // HTTP/2 (and an absolute-form target): the authority, and a Host too.
+        let h2 = "http://attacker.example:50051/laparo.v1.Scenes/ListScenes";
+        assert_eq!(
+            check(&[ORIGIN], h2),
+            Some(Refusal::NotAllowed("attacker.example".into()))
+        );
+        assert_eq!(check(&[ORIGIN], "http://[::1]:50051/x"), None);
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"127.0.0.1")], h2),
+            Some(Refusal::NotAllowed("attacker.example".into()))
+        );
+        assert_eq!(
+            check(
+                &[ORIGIN, ("host", b"attacker.example")],
+                "http://127.0.0.1/x"
+            ),
+            Some(Refusal::NotAllowed("attacker.example".into()))
+        );
+        // None, two, malformed, not ASCII.
+        assert_eq!(check(&[ORIGIN], path), Some(Refusal::NoHost));
+        assert_eq!(
+            check(
+                &[
+                    ORIGIN,
+                    ("host", b"127.0.0.1"),
+                    ("host", b"attacker.example")
+                ],
+                path
+            ),
+            Some(Refusal::ManyHosts)
+        );
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"[::1")], path),
+            Some(Refusal::Malformed("[::1".into()))
+        );
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"")], path),
+            Some(Refusal::Malformed(String::new()))
+        );
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"\xffexample")], path),
+            Some(Refusal::NotAscii)
+        );
+        assert_eq!(
+            check(&[ORIGIN, ("host", b"exa mple")], path),
+            Some(Refusal::Malformed("exa mple".into()))
+        );
+        let long = "x".repeat(300);
+        let Some(Refusal::Malformed(echo)) =
+            check(&[ORIGIN, ("host", format!("{long}:1:2").as_bytes())], path)
+        else {
+            panic!("a long malformed host is refused");
+        };
+        assert_eq!(echo.chars().count(), ECHOED_CHARS + 1);
+    }
+
+    #[test]
+    fn refusals_name_the_host_and_the_flag() {
+        let message = Refusal::NotAllowed("attacker.example".into()).to_string();
+        assert!(message.contains("`attacker.example`"), "{message}");
+        assert!(
+            message.contains("--allowed-host attacker.example"),
+            "{message}"
+        );
+        assert!(message.contains("DNS rebinding"), "{message}");
+        for other in [
+            Refusal::Malformed("[::1".into()),
+            Refusal::NotAscii,
+            Refusal::NoHost,
+            Refusal::ManyHosts,
+        ] {
+            assert!(other.to_string().contains("--allowed-host"), "{other}");
+        }
+    }
+
+    #[test]
+    fn grpc_calls_are_refused_with_a_status_and_others_with_403() {
+        let message = Refusal::NotAllowed("attacker.example".into()).to_string();
+        let mut call = HeaderMap::new();
+        call.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/grpc-web+proto"),
+        );
+        let response = refused(&call, &message);
+        assert_eq!(response.status(), StatusCode::OK);
+        assert_eq!(
+            response.headers()[header::CONTENT_TYPE],
+            "application/grpc-web+proto"
+        );
+        let status = Status::from_header_map(response.headers()).unwrap();
+        assert_eq!(status.code(), Code::PermissionDenied);
+        assert_eq!(status.message(), message);
+        let page = refused(&HeaderMap::new(), &message);
+        assert_eq!(page.status(), StatusCode::FORBIDDEN);
+        assert!(page.headers().get("grpc-status").is_none());
+    }
+}
