@@ -93,6 +93,11 @@ struct ServeArgs {
     /// serves itself may.
     #[arg(long = "cors-origin", value_name = "ORIGIN", value_parser = cors_origin)]
     cors_origins: Vec<String>,
+    /// A host name a browser may reach a server without tokens by (besides IP
+    /// addresses, localhost and the hosts of --cors-origin); repeat for more. A
+    /// browser's request naming another host is refused, against DNS rebinding.
+    #[arg(long = "allowed-host", value_name = "NAME", value_parser = allowed_host)]
+    allowed_hosts: Vec<String>,
 }
 
 /// An idle-connection timeout in seconds: (0, 86400].
@@ -108,6 +113,12 @@ fn idle_connection_seconds(s: &str) -> Result<f64, String> {
 /// An origin as CORS names it: `scheme://host[:port]`.
 fn cors_origin(s: &str) -> Result<String, String> {
     laparo_server::console::parse_origin(s).map_err(|e| e.to_string())?;
+    Ok(s.to_string())
+}
+
+/// A host name as `--allowed-host` takes it: no scheme, no port.
+fn allowed_host(s: &str) -> Result<String, String> {
+    laparo_server::console::parse_allowed_host(s).map_err(|e| e.to_string())?;
     Ok(s.to_string())
 }
 
@@ -175,6 +186,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
         cors_origins: args.cors_origins,
         max_attached: None,
+        allowed_hosts: args.allowed_hosts,
     };
     let runtime = tokio::runtime::Runtime::new().map_err(|e| e.to_string())?;
     let served = runtime.block_on(async move {

@@ -1,5 +1,6 @@
-//! `laparo-server` given out-of-range durations or a scene whose mesh would block:
-//! a usage error or a clear failure, never a panic or a hang.
+//! `laparo-server` given out-of-range durations, a host that is not a name, or a
+//! scene whose mesh would block: a usage error or a clear failure, never a panic
+//! or a hang.
 
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -59,6 +60,23 @@ fn a_station_timeout_out_of_range_is_a_usage_error_naming_the_option_and_range()
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
         assert!(stderr.contains("--station-timeout"), "{bad}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{bad}: {stderr}");
+    }
+}
+
+#[test]
+fn an_allowed_host_that_is_not_a_name_is_a_usage_error_naming_the_option() {
+    for bad in ["laparo.lan:50051", "http://laparo.lan", "*", "[::1]", ""] {
+        let out = finish(
+            server()
+                .args(["--listen", "127.0.0.1:0", "--no-recording"])
+                .arg(format!("--allowed-host={bad}"))
+                .spawn()
+                .unwrap(),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
+        assert!(stderr.contains("--allowed-host"), "{bad}: {stderr}");
         assert!(!stderr.contains("panicked"), "{bad}: {stderr}");
     }
 }

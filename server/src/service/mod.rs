@@ -5,8 +5,9 @@
 //!
 //! The same port serves the browser console ([`crate::console`]): HTTP/1.1 is
 //! accepted, gRPC-web is translated to gRPC, cross-origin calls are refused
-//! unless `cors_origins` allows them, and only the console's static assets are
-//! served without a token.
+//! unless `cors_origins` allows them, a browser's calls to a server without
+//! tokens must name an allowed host (`allowed_hosts`; against DNS rebinding), and
+//! only the console's static assets are served without a token.
 //!
 //! Every service runs the [`auth::Authenticate`] interceptor, and answers a request
 //! it cannot read with the contract's codes ([`decode_status`]). The server refuses to
@@ -104,6 +105,10 @@ pub struct ServeConfig {
     /// Stations attached through `Station.Attach` at once; `None`:
     /// [`attach::MAX_ATTACHED`].
     pub max_attached: Option<usize>,
+    /// Host names a browser's request may name on a server without tokens,
+    /// besides IP addresses, `localhost` and the hosts of `cors_origins`
+    /// ([`crate::console::host`]: against DNS rebinding).
+    pub allowed_hosts: Vec<String>,
 }
 
 #[derive(Debug, Error)]
@@ -124,6 +129,8 @@ pub enum ServeError {
     Transport(#[from] tonic::transport::Error),
     #[error("{0}")]
     Cors(#[from] crate::console::CorsError),
+    #[error("{0}")]
+    AllowedHost(#[from] crate::console::AllowedHostError),
 }
 
 /// Serves the contract on `listener` until `shutdown` resolves, then closes every
@@ -143,6 +150,9 @@ pub async fn serve(
         .iter()
         .map(|o| crate::console::parse_origin(o))
         .collect::<Result<Vec<_>, _>>()?;
+    let hosts = crate::console::AllowedHosts::new(&config.allowed_hosts, &config.cors_origins)?;
+    // With tokens a rebinding page is refused by the interceptor: it has none.
+    let hosts = config.tokens.is_none().then_some(hosts);
     let catalog = SceneCatalog::load(config.scene_dir.as_deref())?;
     if let Some(dir) = &config.recordings
         && let Err(e) = std::fs::create_dir_all(dir)
@@ -285,6 +295,8 @@ pub async fn serve(
         .accept_http1(true)
         .layer(connections::CountStreamsLayer)
         .layer(crate::console::cors_layer(origins))
+        // Inside CORS: preflights are CORS's, and a refusal carries its headers.
+        .layer(crate::console::HostCheckLayer::new(hosts))
         .add_routes(routes)
         .serve_with_incoming_shutdown(
             incoming,
