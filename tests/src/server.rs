@@ -57,6 +57,22 @@ pub async fn http_head(server: &TestServer, request: &str) -> String {
     text[..text.find("\r\n\r\n").unwrap_or(text.len())].to_string()
 }
 
+/// Sends `request`, raw HTTP/1.1, to `server` on a connection of its own and
+/// returns the whole answer, head and body (a gRPC-web body holds its trailers),
+/// lossily as text and lower-cased, read until the server closes within
+/// [`WAIT`]: the request must say `connection: close`.
+pub async fn http_exchange(server: &TestServer, request: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(server.addr).await.unwrap();
+    s.write_all(request.as_bytes()).await.unwrap();
+    let mut out = Vec::new();
+    tokio::time::timeout(WAIT, s.read_to_end(&mut out))
+        .await
+        .expect("the server answers and closes")
+        .unwrap();
+    String::from_utf8_lossy(&out).to_lowercase()
+}
+
 /// A server serving on `127.0.0.1:<free port>` in this runtime.
 pub struct TestServer {
     pub addr: SocketAddr,
