@@ -95,7 +95,7 @@ impl RecorderRoom {
     }
 
     /// Returns once the recorder (if the session has one) has room for a pose, or
-    /// once it has written nothing for [`STALLED`] ([`must_wait`](Self::must_wait)).
+    /// once it writes too slowly to be waited for ([`must_wait`](Self::must_wait)).
     /// Cancel-safe: dropped halfway, the next call goes on with the same wait.
     pub async fn wait(&mut self, recorder: Option<&Recorder>) {
         let Some(r) = recorder else {
