@@ -20,13 +20,18 @@ use tower_http::cors::{AllowOrigin, CorsLayer};
 )]
 pub struct CorsError(pub String);
 
+/// What follows an origin's `http://` or `https://`: its `host[:port]`. `None`
+/// for another scheme.
+pub(super) fn origin_authority(origin: &str) -> Option<&str> {
+    origin
+        .strip_prefix("http://")
+        .or_else(|| origin.strip_prefix("https://"))
+}
+
 /// Checks an origin as `--cors-origin` takes it.
 pub fn parse_origin(origin: &str) -> Result<HeaderValue, CorsError> {
     let bad = || CorsError(origin.to_string());
-    let rest = origin
-        .strip_prefix("http://")
-        .or_else(|| origin.strip_prefix("https://"))
-        .ok_or_else(bad)?;
+    let rest = origin_authority(origin).ok_or_else(bad)?;
     let valid = !rest.is_empty()
         && rest
             .chars()

@@ -145,10 +145,8 @@ impl AllowedHosts {
             .map(|n| parse_allowed_host(n))
             .collect::<Result<Vec<_>, _>>()?;
         for origin in cors_origins {
-            let rest = origin
-                .strip_prefix("http://")
-                .or_else(|| origin.strip_prefix("https://"));
-            if let Some(Host::Name(n)) = rest.and_then(parse_host) {
+            if let Some(Host::Name(n)) = super::cors::origin_authority(origin).and_then(parse_host)
+            {
                 names.push(n);
             }
         }
