@@ -9,7 +9,9 @@
 //! played to its end; a wrong token refused on the page; the server stopped
 //! and started again on its port (the page says so and comes back by itself);
 //! a gamepad driving an instrument and its vibration growing with the force;
-//! the console over TLS (a self-signed certificate made here).
+//! the console over TLS (a self-signed certificate made here). Then, on a server
+//! without tokens, a page opened by a name that is not the server's told that its
+//! address is refused (`web/tests/host.mjs`).
 //! The script fails on any uncaught exception or console error of a page.
 //!
 //! Needs node, chromium and `web/node_modules` (`.ci/run` installs them). Without
@@ -51,18 +53,27 @@ fn missing(web: &Path) -> Option<String> {
     None
 }
 
+/// The console's folder, if the browser tests can run: without what they need,
+/// `None` after saying so, or a failure when `CI` is set.
+fn web_or_skip() -> Option<PathBuf> {
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../web");
+    let Some(what) = missing(&web) else {
+        return Some(web);
+    };
+    if std::env::var_os("CI").is_some() {
+        panic!(
+            "browser tests cannot run: {what}; .ci/run installs chromium and the packages of web/"
+        );
+    }
+    println!("skipped: the console's browser tests: {what}");
+    None
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_console_works_in_a_real_browser() {
-    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("../web");
-    if let Some(what) = missing(&web) {
-        if std::env::var_os("CI").is_some() {
-            panic!(
-                "browser tests cannot run: {what}; .ci/run installs chromium and the packages of web/"
-            );
-        }
-        println!("skipped: the console's browser tests: {what}");
+    let Some(web) = web_or_skip() else {
         return;
-    }
+    };
     let mut tokens = Tokens::default();
     tokens.insert(
         TOKEN,
@@ -142,3 +153,50 @@ async fn the_console_works_in_a_real_browser() {
     }
     tls.shutdown().await.unwrap();
 }
+
+/// The console on a server without tokens opened by a name that resolves to it
+/// but that the server does not know (`web/tests/host.mjs`): the page says its
+/// address is refused and names `--allowed-host`, without asking for a token;
+/// opened by the server's address, it lists the scenes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_page_opened_by_a_name_the_server_does_not_know_is_told_so() {
+    let Some(web) = web_or_skip() else {
+        return;
+    };
+    let server = TestServer::start(ServeConfig::default()).await;
+    let out = tempfile::tempdir().unwrap();
+    let log_path = out.path().join("host.log");
+    let log = std::fs::File::create(&log_path).unwrap();
+    let mut child = Command::new("node")
+        .arg(web.join("tests/host.mjs"))
+        .arg(server.addr.port().to_string())
+        .arg(out.path())
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .spawn()
+        .expect("node starts");
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > HOST_RUN_LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+    println!("{log}");
+    let status =
+        status.unwrap_or_else(|| panic!("the browser run took over {HOST_RUN_LIMIT:?}:\n{log}"));
+    assert!(status.success(), "the browser tests failed:\n{log}");
+    assert!(log.contains("host tests passed"), "{log}");
+    server.shutdown().await.unwrap();
+}
+
+/// The host check's browser run: a browser started and two pages loaded, about
+/// 10 s on a 2-core machine.
+const HOST_RUN_LIMIT: Duration = Duration::from_secs(120);

@@ -4,8 +4,9 @@
 //! (`PERMISSION_DENIED` naming the host and `--allowed-host`; nothing done).
 //! Calls naming an IP address, `localhost`, a `--cors-origin`'s host or an
 //! `--allowed-host` are served; with tokens the interceptor answers instead; a
-//! native gRPC client (no `Origin`) is served whatever authority it names; a
-//! malformed or non-ASCII host is refused and the server goes on.
+//! native gRPC client (no `Origin`) is served whatever authority it names, and
+//! the page's assets whatever host the request names; a malformed or non-ASCII
+//! host is refused and the server goes on.
 
 use laparo_proto::v1;
 use laparo_server::service::{Role, ServeConfig};
@@ -43,9 +44,11 @@ fn head_status(answer: &str) -> Option<Status> {
 }
 
 /// Asserts that `answer` is the refusal of a host: `PERMISSION_DENIED` in the
-/// head, naming `host` and `--allowed-host`.
+/// head, naming `host` and `--allowed-host`, marked as the host check's for the
+/// console (`laparo-refusal: host`).
 fn assert_refused(answer: &str, host: &str) {
     assert!(answer.starts_with("http/1.1 200"), "{answer}");
+    assert!(answer.contains("\r\nlaparo-refusal: host\r\n"), "{answer}");
     let status = head_status(answer).unwrap_or_else(|| panic!("no status: {answer}"));
     assert_eq!(status.code(), Code::PermissionDenied, "{answer}");
     assert!(status.message().contains(host), "{status:?}");
@@ -104,20 +107,29 @@ async fn a_rebound_page_is_refused_by_the_host_it_names() {
     )
     .await;
     assert_refused(&answer, "attacker.example");
-    // Any other request a page sends with its Origin: HTTP 403.
-    let page = http_exchange(
+    // Any other request a page sends with its Origin, but one that reads: HTTP 403.
+    let post = http_exchange(
         &server,
-        &format!("GET / HTTP/1.1\r\nhost: {host}\r\norigin: {origin}\r\nconnection: close\r\n\r\n"),
+        &format!(
+            "POST / HTTP/1.1\r\nhost: {host}\r\norigin: {origin}\r\ncontent-type: text/plain\r\ncontent-length: 2\r\nconnection: close\r\n\r\nhi"
+        ),
     )
     .await;
-    assert!(page.starts_with("http/1.1 403"), "{page}");
+    assert!(post.starts_with("http/1.1 403"), "{post}");
     assert!(
-        page.contains("attacker.example") && page.contains("--allowed-host"),
-        "{page}"
+        post.contains("attacker.example") && post.contains("--allowed-host"),
+        "{post}"
     );
-    // A navigation to the page carries no Origin: the assets are served.
-    let page = http_head(&server, &format!("GET / HTTP/1.1\r\nhost: {host}\r\n\r\n")).await;
-    assert!(page.starts_with("http/1.1 200"), "{page}");
+    // The page's assets are served, with Origin (a module script is fetched so)
+    // or without (a navigation): they hold no secret and do nothing.
+    for origin in [format!("origin: {origin}\r\n"), String::new()] {
+        let page = http_head(
+            &server,
+            &format!("GET / HTTP/1.1\r\nhost: {host}\r\n{origin}\r\n"),
+        )
+        .await;
+        assert!(page.starts_with("http/1.1 200"), "{origin}: {page}");
+    }
     server.shutdown().await.unwrap();
 }
 
@@ -177,6 +189,24 @@ async fn allowed_hosts_and_the_hosts_of_cors_origins_are_served() {
     )
     .await;
     assert_refused(&answer, "other.example");
+    // A page of a `--cors-origin` calling the server by a name not allowed is
+    // refused with the CORS headers it needs to read why, the mark included.
+    let host = format!("elsewhere.example:{port}");
+    let answer = http_exchange(
+        &server,
+        &grpc_web(LIST_SCENES, &host, "http://console.example:5173"),
+    )
+    .await;
+    assert_refused(&answer, "elsewhere.example");
+    assert!(
+        answer.contains("\r\naccess-control-allow-origin: http://console.example:5173\r\n"),
+        "{answer}"
+    );
+    let exposed = answer
+        .lines()
+        .find_map(|l| l.strip_prefix("access-control-expose-headers: "))
+        .unwrap_or_else(|| panic!("no exposed headers: {answer}"));
+    assert!(exposed.contains("laparo-refusal"), "{exposed}");
     server.shutdown().await.unwrap();
 }
 

@@ -30,7 +30,14 @@ export interface Failure {
   retry: boolean;
   /** The token is wrong or missing. */
   auth: boolean;
+  /** The server refuses the name the page was opened by (its guard against DNS
+   * rebinding, on a server without tokens): no token helps, another address does. */
+  host?: boolean;
 }
+
+/** The header by which the server marks its refusal of the page's host
+ * (`server/src/console/host.rs`, `REFUSAL_HEADER`). */
+const REFUSAL_HEADER = "laparo-refusal";
 
 export function failure(e: unknown): Failure {
   if (e instanceof DOMException && e.name === "AbortError") {
@@ -38,6 +45,9 @@ export function failure(e: unknown): Failure {
   }
   const err = ConnectError.from(e);
   const text = err.rawMessage || Code[err.code] || String(e);
+  if (err.metadata.get(REFUSAL_HEADER) === "host") {
+    return { code: err.code, text: `this page's address is refused: ${text}`, retry: false, auth: false, host: true };
+  }
   switch (err.code) {
     case Code.Unauthenticated:
       return { code: err.code, text: `wrong or missing token: ${text}`, retry: false, auth: true };

@@ -146,9 +146,9 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
       } catch (e) {
         if (signal.aborted) return;
         const f = failure(e);
-        if (f.auth) {
+        if (f.auth || f.host) {
           setConnection("error", f.text);
-          notice(`${f.text} — enter a token above`);
+          notice(f.auth ? `${f.text} — enter a token above` : f.text);
           document.body.dataset.error = f.text;
           return;
         }

@@ -55,7 +55,12 @@ pub fn cors_layer(origins: Vec<HeaderValue>) -> CorsLayer {
         "connect-protocol-version",
         "connect-timeout-ms",
     ];
-    const EXPOSED_HEADERS: [&str; 3] = ["grpc-status", "grpc-message", "grpc-status-details-bin"];
+    const EXPOSED_HEADERS: [&str; 4] = [
+        "grpc-status",
+        "grpc-message",
+        "grpc-status-details-bin",
+        super::host::REFUSAL_HEADER,
+    ];
     CorsLayer::new()
         .allow_origin(AllowOrigin::list(origins))
         .allow_methods([Method::GET, Method::POST])

@@ -10,9 +10,9 @@
 //! attacker's host, since a browser sends the host of the page's URL in `Host`
 //! (HTTP/1.1) or `:authority` (HTTP/2).
 //!
-//! So on a server without tokens, a request that carries `Origin` (a browser's:
-//! every gRPC-web `POST` does) is served only if each host it names (port
-//! ignored, case and a trailing dot too) is
+//! So on a server without tokens, a request other than `GET` or `HEAD` that
+//! carries `Origin` (a browser's: every gRPC-web `POST` does) is served only if
+//! each host it names (port ignored, case and a trailing dot too) is
 //! - an IP literal (`127.0.0.1`, `[::1]`): a rebinding needs a name;
 //! - `localhost` or a name ending in `.localhost`, which browsers resolve to
 //!   loopback themselves, never through DNS;
@@ -22,15 +22,20 @@
 //! Any other is refused: a gRPC or gRPC-web call with `PERMISSION_DENIED`
 //! (trailers-only, in the request's content type, as tonic-web answers a call
 //! refused before its handler), anything else with HTTP 403; both name the host
-//! and `--allowed-host`. A request naming no host, more than one `Host`, or one
-//! that is not `host[:port]` (or not ASCII) is refused the same way.
+//! and `--allowed-host`, and carry [`REFUSAL_HEADER`]`: host`, by which the
+//! console tells this refusal from a token's (no token helps here). A request
+//! naming no host, more than one `Host`, or one that is not `host[:port]` (or not
+//! ASCII) is refused the same way.
 //!
 //! Left alone:
 //! - requests without `Origin`. Native gRPC clients (tonic, grpcurl, the
 //!   `laparo` client) send none: they name the host they were given, not a page's,
-//!   so a DNS answer cannot turn them against the server. Nor does a browser
-//!   navigating to the console's page; its assets hold no secret, and the calls
-//!   the page makes carry `Origin`.
+//!   so a DNS answer cannot turn them against the server.
+//! - `GET` and `HEAD`: the console's assets, which hold no secret and do nothing
+//!   (every call is a `POST`). A browser sends `Origin` with some of them (the
+//!   page's module script is fetched in CORS mode even from its own origin), so
+//!   checking them left a page opened by a refused name blank, with nothing to say
+//!   why; served, the page loads and shows its first call's refusal.
 //! - servers with tokens: a rebinding page has no token, and the authentication
 //!   interceptor refuses its calls (`UNAUTHENTICATED`).
 //!
@@ -44,7 +49,7 @@ use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
 
-use http::{HeaderMap, HeaderValue, Request, Response, StatusCode, header};
+use http::{HeaderMap, HeaderValue, Method, Request, Response, StatusCode, header};
 use tonic::body::Body;
 use tonic::{Code, Status};
 
@@ -163,10 +168,11 @@ impl AllowedHosts {
         }
     }
 
-    /// Why `request` is refused, if it is: it carries `Origin` and names a host
-    /// not allowed, or none it can be checked by.
+    /// Why `request` is refused, if it is: it is not a `GET` or `HEAD`, carries
+    /// `Origin` and names a host not allowed, or none it can be checked by.
     fn refusal<B>(&self, request: &Request<B>) -> Option<Refusal> {
-        if !request.headers().contains_key(header::ORIGIN) {
+        let reads = matches!(*request.method(), Method::GET | Method::HEAD);
+        if reads || !request.headers().contains_key(header::ORIGIN) {
             return None;
         }
         let mut hosts = request.headers().get_all(header::HOST).iter();
@@ -243,10 +249,17 @@ impl std::fmt::Display for Refusal {
     }
 }
 
+/// The header every refusal of this layer carries, with the value `host`: the
+/// console reads it to say that the page must be opened by another name, not
+/// that a token is missing (`PERMISSION_DENIED` is also a role's refusal on a
+/// server with tokens). CORS exposes it, so that a page of a `--cors-origin`
+/// reads it too.
+pub const REFUSAL_HEADER: &str = "laparo-refusal";
+
 /// The answer to a refused request: for a gRPC or gRPC-web call (its content
 /// type `application/grpc…`), `PERMISSION_DENIED` in the headers
 /// (trailers-only), in the call's content type; otherwise HTTP 403, the message
-/// as text.
+/// as text. Both carry [`REFUSAL_HEADER`]`: host`.
 fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
     let grpc = request
         .get(header::CONTENT_TYPE)
@@ -254,15 +267,18 @@ fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
     let Some(content_type) = grpc else {
         let mut response = Response::new(Body::new(format!("{message}\n")));
         *response.status_mut() = StatusCode::FORBIDDEN;
-        response.headers_mut().insert(
+        let headers = response.headers_mut();
+        headers.insert(
             header::CONTENT_TYPE,
             HeaderValue::from_static("text/plain; charset=utf-8"),
         );
+        headers.insert(REFUSAL_HEADER, HeaderValue::from_static("host"));
         return response;
     };
     let mut response = Response::new(Body::default());
     let headers = response.headers_mut();
     headers.insert(header::CONTENT_TYPE, content_type.clone());
+    headers.insert(REFUSAL_HEADER, HeaderValue::from_static("host"));
     // The message is percent-encoded, so it can always be a header value; if it
     // could not, the code alone.
     if Status::permission_denied(message)

@@ -139,6 +139,12 @@ fn browser_requests_are_checked_by_every_host_they_name() {
     // Without Origin (native gRPC, a navigation): nothing is checked.
     assert_eq!(check(&[("host", b"attacker.example:50051")], path), None);
     assert_eq!(check(&[], path), None);
+    // Nor what reads the page's assets, with Origin or not.
+    for method in ["GET", "HEAD"] {
+        let mut read = request(&[ORIGIN, ("host", b"attacker.example:50051")], "/");
+        *read.method_mut() = method.parse().unwrap();
+        assert_eq!(allowed.refusal(&read), None, "{method}");
+    }
     // HTTP/1.1: the Host header.
     assert_eq!(
         check(&[ORIGIN, ("host", b"attacker.example:50051")], path),
@@ -238,7 +244,9 @@ fn grpc_calls_are_refused_with_a_status_and_others_with_403() {
     let status = Status::from_header_map(response.headers()).unwrap();
     assert_eq!(status.code(), Code::PermissionDenied);
     assert_eq!(status.message(), message);
+    assert_eq!(response.headers()[REFUSAL_HEADER], "host");
     let page = refused(&HeaderMap::new(), &message);
     assert_eq!(page.status(), StatusCode::FORBIDDEN);
     assert!(page.headers().get("grpc-status").is_none());
+    assert_eq!(page.headers()[REFUSAL_HEADER], "host");
 }
