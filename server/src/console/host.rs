@@ -117,7 +117,7 @@ fn valid_port(port: &str) -> bool {
 /// An `--allowed-host` argument that is not a host name.
 #[derive(Debug, thiserror::Error)]
 #[error(
-    "--allowed-host `{0}`: a host name (letters, digits, `-`, `_`, `.`), without scheme or port; IP addresses and localhost need none"
+    "--allowed-host `{0}`: a host name (letters, digits, `-`, `_`, `.`), without scheme or port; IP addresses and localhost need none; a name with other letters is given in the ASCII form browsers send (`xn--…`)"
 )]
 pub struct AllowedHostError(pub String);
 

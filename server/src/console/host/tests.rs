@@ -118,6 +118,13 @@ fn allowed_host_arguments_are_names_without_port() {
         let e = parse_allowed_host(bad).unwrap_err();
         assert!(e.to_string().contains("--allowed-host"), "{bad}: {e}");
     }
+    // A name with letters beyond ASCII is taken in the form browsers send it.
+    let e = parse_allowed_host("bücher.example").unwrap_err();
+    assert!(e.to_string().contains("xn--"), "{e}");
+    assert_eq!(
+        parse_allowed_host("xn--bcher-kva.example").unwrap(),
+        "xn--bcher-kva.example"
+    );
     assert!(AllowedHosts::new(&["x:1".to_string()], &[]).is_err());
 }
 
