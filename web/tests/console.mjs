@@ -309,6 +309,29 @@ try {
       await page.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
       check(page.url().startsWith("https:"), page.url());
       console.log(`ok console over TLS at ${tlsUrl} lists the scenes`);
+      // A station over TLS: the browser speaks HTTP/2 there (ALPN), so the
+      // instrument's streams (Station.Attach out, SendPoses in) run over it.
+      step = "tls: driving";
+      await page.click("#create");
+      await page.waitForSelector('#live[data-mode="drive"]', { timeout: T });
+      await liveState(page, "live");
+      const c = await page.$eval("#viewport canvas", (e) => {
+        const r = e.getBoundingClientRect();
+        return { x: r.x + r.width / 2, y: r.y + r.height / 2 };
+      });
+      await page.mouse.move(c.x, c.y);
+      let tlsForce = 0;
+      for (let i = 0; i < 100 && tlsForce <= 0; i++) {
+        await page.mouse.wheel(0, 100);
+        await page.waitForTimeout(60);
+        tlsForce = await page.$eval('#gauges [data-instrument="left"]', (e) => Number(e.dataset.forceN));
+      }
+      check(tlsForce > 0, `the left force gauge reads ${tlsForce} N after inserting over TLS`);
+      const protocols = await page.evaluate(() => [
+        ...new Set(performance.getEntriesByType("resource").map((e) => e.nextHopProtocol)),
+      ]);
+      check(protocols.includes("h2"), `the page's requests went over ${protocols.join(", ")}, not HTTP/2`);
+      console.log(`ok an instrument driven over TLS (${protocols.join(", ")}): force ${tlsForce.toFixed(3)} N`);
     } finally {
       await secure.close();
     }
