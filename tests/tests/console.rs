@@ -70,6 +70,47 @@ fn web_or_skip() -> Option<PathBuf> {
     None
 }
 
+/// Runs `node script args…` (its output in `out/SCRIPT.log`), calling `between`
+/// every 100 ms while it runs, and gives its output; fails the test when it
+/// fails or runs longer than `limit`.
+async fn run_script(
+    script: &Path,
+    args: &[String],
+    out: &Path,
+    limit: Duration,
+    mut between: impl AsyncFnMut(),
+) -> String {
+    let name = script.file_stem().unwrap().to_string_lossy();
+    let log_path = out.join(format!("{name}.log"));
+    let log = std::fs::File::create(&log_path).unwrap();
+    let mut child = Command::new("node")
+        .arg(script)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .spawn()
+        .expect("node starts");
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        between().await;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+    println!("{log}");
+    let status = status.unwrap_or_else(|| panic!("{name}.mjs took over {limit:?}:\n{log}"));
+    assert!(status.success(), "{name}.mjs failed:\n{log}");
+    log
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_console_works_in_a_real_browser() {
     let Some(web) = web_or_skip() else {
@@ -107,47 +148,32 @@ async fn the_console_works_in_a_real_browser() {
     })
     .await;
     let out_dir = out.path().to_path_buf();
-    let log_path = out_dir.join("browser.log");
-    let log = std::fs::File::create(&log_path).unwrap();
-    let mut child = Command::new("node")
-        .arg(web.join("tests/console.mjs"))
-        .arg(format!("http://{addr}/"))
-        .arg(TOKEN)
-        .arg(&out_dir)
-        .arg(format!("https://localhost:{}/", tls.addr.port()))
-        .stdin(Stdio::null())
-        .stdout(log.try_clone().unwrap())
-        .stderr(log)
-        .spawn()
-        .expect("node starts");
+    let args = [
+        format!("http://{addr}/"),
+        TOKEN.to_string(),
+        out_dir.display().to_string(),
+        format!("https://localhost:{}/", tls.addr.port()),
+    ];
     // The script asks for the server to be stopped (a file `stop` in OUT_DIR;
     // answered with `stopped`) and started again on its port (`start`, answered
     // with `started`), to see the page lose and regain it.
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break Some(s);
-        }
-        if start.elapsed() > RUN_LIMIT {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        if out_dir.join("stop").exists() && !out_dir.join("stopped").exists() {
-            server.take().unwrap().shutdown().await.unwrap();
-            std::fs::write(out_dir.join("stopped"), "").unwrap();
-        }
-        if out_dir.join("start").exists() && !out_dir.join("started").exists() {
-            server = Some(TestServer::start_at(addr, config.clone()).await);
-            std::fs::write(out_dir.join("started"), "").unwrap();
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    };
-    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
-    println!("{log}");
-    let status =
-        status.unwrap_or_else(|| panic!("the browser run took over {RUN_LIMIT:?}:\n{log}"));
-    assert!(status.success(), "the browser tests failed:\n{log}");
+    let log = run_script(
+        &web.join("tests/console.mjs"),
+        &args,
+        &out_dir,
+        RUN_LIMIT,
+        async || {
+            if out_dir.join("stop").exists() && !out_dir.join("stopped").exists() {
+                server.take().unwrap().shutdown().await.unwrap();
+                std::fs::write(out_dir.join("stopped"), "").unwrap();
+            }
+            if out_dir.join("start").exists() && !out_dir.join("started").exists() {
+                server = Some(TestServer::start_at(addr, config.clone()).await);
+                std::fs::write(out_dir.join("started"), "").unwrap();
+            }
+        },
+    )
+    .await;
     assert!(log.contains("browser tests passed"), "{log}");
     if let Some(server) = server {
         server.shutdown().await.unwrap();
@@ -166,34 +192,12 @@ async fn a_page_opened_by_a_name_the_server_does_not_know_is_told_so() {
     };
     let server = TestServer::start(ServeConfig::default()).await;
     let out = tempfile::tempdir().unwrap();
-    let log_path = out.path().join("host.log");
-    let log = std::fs::File::create(&log_path).unwrap();
-    let mut child = Command::new("node")
-        .arg(web.join("tests/host.mjs"))
-        .arg(server.addr.port().to_string())
-        .arg(out.path())
-        .stdin(Stdio::null())
-        .stdout(log.try_clone().unwrap())
-        .stderr(log)
-        .spawn()
-        .expect("node starts");
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break Some(s);
-        }
-        if start.elapsed() > HOST_RUN_LIMIT {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    };
-    let log = std::fs::read_to_string(&log_path).unwrap_or_default();
-    println!("{log}");
-    let status =
-        status.unwrap_or_else(|| panic!("the browser run took over {HOST_RUN_LIMIT:?}:\n{log}"));
-    assert!(status.success(), "the browser tests failed:\n{log}");
+    let args = [
+        server.addr.port().to_string(),
+        out.path().display().to_string(),
+    ];
+    let script = web.join("tests/host.mjs");
+    let log = run_script(&script, &args, out.path(), HOST_RUN_LIMIT, async || {}).await;
     assert!(log.contains("host tests passed"), "{log}");
     server.shutdown().await.unwrap();
 }

@@ -55,3 +55,15 @@ export async function createSession(lobby, url, scene) {
   await lobby.goto(`${url}#/`);
   return session;
 }
+
+/** Says where a run failed (`step`, the error `e`, the pages' URLs and connection
+ * states, the `problems` watched) and saves a screenshot of each page of
+ * `context` as OUT/`prefix`-K.png. */
+export async function reportFailure(context, out, prefix, step, e, problems) {
+  console.error(`FAILED at ${step}: ${e.message}`);
+  for (const [i, p] of context.pages().entries()) {
+    await p.screenshot({ path: `${out}/${prefix}-${i}.png` }).catch(() => {});
+    console.error(`page ${i} ${p.url()}: ${await p.$eval("#connection", (e) => e.textContent).catch(() => "?")}`);
+  }
+  for (const p of problems) console.error(p);
+}

@@ -6,7 +6,7 @@
 // OUT_DIR/stop and waits for OUT_DIR/stopped, then OUT_DIR/start and waits for
 // OUT_DIR/started (tests/tests/console.rs answers).
 import { existsSync, writeFileSync } from "node:fs";
-import { launch, watch } from "./browser.mjs";
+import { launch, reportFailure, watch } from "./browser.mjs";
 import { decodePng } from "./png.mjs";
 
 const [url, token, out, tlsUrl] = process.argv.slice(2);
@@ -340,12 +340,7 @@ try {
   check(problems.length === 0, problems.join("; "));
   console.log("browser tests passed");
 } catch (e) {
-  console.error(`FAILED at ${step}: ${e.message}`);
-  for (const [i, p] of context.pages().entries()) {
-    await p.screenshot({ path: `${out}/failed-${i}.png` }).catch(() => {});
-    console.error(`page ${i} ${p.url()}: ${await p.$eval("#connection", (e) => e.textContent).catch(() => "?")}`);
-  }
-  for (const p of problems) console.error(p);
+  await reportFailure(context, out, "failed", step, e, problems);
   status = 1;
 } finally {
   await close();

@@ -7,7 +7,7 @@
 // `Origin`, which the server's host check keys on, and that the page reads the
 // refusal's mark.
 // Usage: node host.mjs PORT OUT_DIR
-import { launch, watch } from "./browser.mjs";
+import { launch, reportFailure, watch } from "./browser.mjs";
 
 const [port, out] = process.argv.slice(2);
 const NAME = "rebind.example";
@@ -47,12 +47,7 @@ try {
   check(problems.length === 0, problems.join("; "));
   console.log("host tests passed");
 } catch (e) {
-  console.error(`FAILED at ${step}: ${e.message}`);
-  for (const [i, p] of context.pages().entries()) {
-    await p.screenshot({ path: `${out}/host-failed-${i}.png` }).catch(() => {});
-    console.error(`page ${i} ${p.url()}: ${await p.$eval("#connection", (e) => e.textContent).catch(() => "?")}`);
-  }
-  for (const p of problems) console.error(p);
+  await reportFailure(context, out, "host-failed", step, e, problems);
   status = 1;
 } finally {
   await close();
