@@ -184,7 +184,8 @@ async fn the_console_works_in_a_real_browser() {
 /// The console on a server without tokens opened by a name that resolves to it
 /// but that the server does not know (`web/tests/host.mjs`): the page says its
 /// address is refused and names `--allowed-host`, without asking for a token;
-/// opened by the server's address, it lists the scenes.
+/// opened by the server's address, as localhost or by a name under .localhost,
+/// it lists the scenes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_page_opened_by_a_name_the_server_does_not_know_is_told_so() {
     let Some(web) = web_or_skip() else {

@@ -2,8 +2,8 @@
 // know (run by tests/tests/console.rs): the browser resolves `rebind.example` to
 // the server's loopback address, as a DNS rebinding would, and the page says that
 // its address is refused, naming the flag that would allow it, and does not ask
-// for a token (none would help); the same server opened by its IP address lists
-// the default scene. Checks in a real browser that its gRPC-web calls carry
+// for a token (none would help); the same server opened by its IP address, as
+// localhost or by a name under .localhost lists the default scene. Checks in a real browser that its gRPC-web calls carry
 // `Origin`, which the server's host check keys on, and that the page reads the
 // refusal's mark.
 // Usage: node host.mjs PORT OUT_DIR
@@ -37,12 +37,17 @@ try {
   check((await rebound.$$("#scenes tr[data-scene]")).length === 0, "scenes listed on a refused page");
   console.log(`ok a page opened as ${NAME} is refused: ${said}`);
 
-  step = "opened by address";
-  const direct = await context.newPage();
-  watch(direct, "direct", problems);
-  await direct.goto(`http://127.0.0.1:${port}/`);
-  await direct.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
-  console.log("ok the same server opened by its address lists the default scene");
+  // The names allowed without a flag: the address, localhost and a name under
+  // .localhost (which the browser resolves to loopback itself).
+  for (const host of ["127.0.0.1", "localhost", "station-1.localhost"]) {
+    step = `opened as ${host}`;
+    const direct = await context.newPage();
+    watch(direct, host, problems);
+    await direct.goto(`http://${host}:${port}/`);
+    await direct.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+    await direct.close();
+    console.log(`ok the same server opened as ${host} lists the default scene`);
+  }
 
   check(problems.length === 0, problems.join("; "));
   console.log("host tests passed");
