@@ -26,7 +26,8 @@ export const recordings = createClient(Recordings, transport);
 export interface Failure {
   code: Code | undefined;
   text: string;
-  /** A transport failure (server gone, restarting): try again later. */
+  /** Trying again later can help: the server is gone or restarting, or the
+   * instrument asked for is held by another station. */
   retry: boolean;
   /** The token is wrong or missing. */
   auth: boolean;
@@ -55,6 +56,11 @@ export function failure(e: unknown): Failure {
       return { code: err.code, text: `not allowed with this token: ${text}`, retry: false, auth: true };
     case Code.NotFound:
       return { code: err.code, text: `not found: ${text}`, retry: false, auth: false };
+    case Code.AlreadyExists:
+      // An instrument another station holds (the server's only use of the code):
+      // it is free again when that station leaves, or, if its page went away,
+      // once the server sees it gone; worth waiting for.
+      return { code: err.code, text: `${text}; waiting for its release`, retry: true, auth: false };
     case Code.Unavailable:
     case Code.Unknown:
     case Code.Internal:

@@ -277,6 +277,18 @@ try {
   check(Math.abs(sent.spacing - 4) < 0.01, `poses ${sent.spacing} ms apart`);
   check(sent.poses > sent.calls, `${sent.poses} poses in ${sent.calls} calls`);
   console.log(`ok ${sent.poses} poses 4 ms apart in ${sent.calls} calls`);
+
+  // An instrument another station holds is waited for, and taken once it is let
+  // go: the pad's page asks for the left instrument, which the driver holds.
+  step = "claimed instrument";
+  await pad.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=left`);
+  await liveState(pad, "reconnecting");
+  const waiting = await pad.$eval("#notice", (e) => e.textContent);
+  check(/already claimed/.test(waiting) && /waiting for its release/.test(waiting), `the page says "${waiting}"`);
+  await driver.goto(`${url}#/`);
+  await liveState(pad, "live");
+  await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip, null, { timeout: T });
+  console.log(`ok a claimed instrument was waited for ("${waiting}") and taken once let go`);
   await pad.close();
 
   // A restarted server: the page says the connection is lost and comes back.
