@@ -291,6 +291,21 @@ try {
   console.log(`ok a claimed instrument was waited for ("${waiting}") and taken once let go`);
   await pad.close();
 
+  // A live view left frees its WebGL context at once: a browser keeps about 16,
+  // and a context only disposed stays until garbage collection, so switching
+  // views a few dozen times made chromium drop the oldest.
+  step = "switching views";
+  for (let i = 0; i < 3; i++) {
+    await driver.goto(`${url}#/live/${encodeURIComponent(padSession)}`);
+    await driver.waitForFunction(() => Number(document.querySelector("#live")?.dataset.drawn) > 0, null, { timeout: T });
+    await driver.evaluate(() => (window.__leftCanvas = document.querySelector("#viewport canvas")));
+    await driver.goto(`${url}#/`);
+    await driver.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+    const lost = await driver.evaluate(() => window.__leftCanvas.getContext("webgl2")?.isContextLost());
+    check(lost === true, `the WebGL context of live view ${i + 1} is ${lost === false ? "still held" : lost} after leaving it`);
+  }
+  console.log("ok each live view left released its WebGL context");
+
   // A restarted server: the page says the connection is lost and comes back.
   step = "restart";
   for (const p of context.pages()) await p.close();

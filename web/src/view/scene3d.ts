@@ -60,6 +60,7 @@ export class SceneView {
   private readonly mid = new THREE.Vector3();
   private readonly dir = new THREE.Vector3();
   private static readonly UP = new THREE.Vector3(0, 1, 0);
+  private readonly sizes = new ResizeObserver(() => this.resize());
 
   constructor(readonly container: HTMLElement) {
     this.renderer = new THREE.WebGLRenderer({ antialias: true });
@@ -74,7 +75,7 @@ export class SceneView {
     const key = new THREE.DirectionalLight(0xffffff, 1.6);
     key.position.set(0.3, 0.5, 0.6);
     this.scene.add(key);
-    new ResizeObserver(() => this.resize()).observe(container);
+    this.sizes.observe(container);
     this.resize();
   }
 
@@ -283,9 +284,20 @@ export class SceneView {
     this.dirty = true;
   }
 
+  /** Frees what the view holds on the GPU, its WebGL context included: a
+   * browser keeps about 16 contexts alive, and one only disposed stays until
+   * garbage collection, so switching views a few dozen times made chromium
+   * drop the oldest ("Too many active WebGL contexts"). */
   dispose(): void {
+    this.sizes.disconnect();
+    this.scene.traverse((o) => {
+      const m = o as THREE.Object3D & { geometry?: THREE.BufferGeometry; material?: THREE.Material | THREE.Material[] };
+      m.geometry?.dispose();
+      for (const material of [m.material ?? []].flat()) material.dispose();
+    });
     this.controls.dispose();
     this.renderer.dispose();
+    this.renderer.forceContextLoss();
     this.renderer.domElement.remove();
   }
 }
