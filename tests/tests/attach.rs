@@ -1,14 +1,15 @@
 //! `Station.Attach` and `Station.SendPoses` against a real server: the handle
 //! first, then what Join sends; poses through the handle drive the instrument
 //! and are checked as Join's are; the handle works only for its own token; the
-//! station leaves when its stream is dropped or after `leave`. And the console's
+//! station leaves when its stream is dropped or after `leave`, and an empty call
+//! keeps it from being timed out. And the console's
 //! edges: cross-origin calls refused unless allowed, static assets without a
 //! token.
 
 use std::time::Duration;
 
 use laparo_proto::v1;
-use laparo_server::service::{Caller, Role, ServeConfig, Tokens};
+use laparo_server::service::{Caller, Role, ServeConfig, StationTimeout, Tokens};
 use laparo_tests::server::*;
 use tonic::Code;
 use tonic::transport::Channel;
@@ -18,6 +19,15 @@ const ALICE: Option<&str> = Some("alice-token-1");
 const BOB: Option<&str> = Some("bob-token-22");
 
 async fn server(cors: &[&str]) -> TestServer {
+    TestServer::start(ServeConfig {
+        cors_origins: cors.iter().map(|s| s.to_string()).collect(),
+        ..config()
+    })
+    .await
+}
+
+/// A server's configuration with the three tokens of these tests.
+fn config() -> ServeConfig {
     let mut tokens = Tokens::default();
     for (token, name, role) in [
         (TEACHER, "teacher", Role::Instructor),
@@ -33,12 +43,10 @@ async fn server(cors: &[&str]) -> TestServer {
             },
         );
     }
-    TestServer::start(ServeConfig {
+    ServeConfig {
         tokens: Some(tokens),
-        cors_origins: cors.iter().map(|s| s.to_string()).collect(),
         ..ServeConfig::default()
-    })
-    .await
+    }
 }
 
 fn join_request(session: &str, instruments: &[&str]) -> v1::JoinRequest {
@@ -260,6 +268,46 @@ async fn dropping_the_attach_stream_leaves_the_session() {
     );
     let after = send(&ch, ALICE, &handle, vec![], false).await;
     assert_eq!(after.unwrap_err().code(), Code::NotFound);
+}
+
+/// A `SendPoses` with no poses and no leave is the station's heartbeat: a browser
+/// station whose instruments do not move (a hidden tab draws no frames, so it
+/// samples no poses) is not timed out while it calls; once it stops, it is.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_empty_send_is_a_heartbeat() {
+    const TIMEOUT_S: f64 = 0.5;
+    let server = TestServer::start(ServeConfig {
+        station_timeout: StationTimeout::from_secs(TIMEOUT_S).unwrap(),
+        ..config()
+    })
+    .await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), TEACHER)
+        .await
+        .unwrap()
+        .session_id;
+    let (mut rx, handle) = attach(&ch, ALICE, &session).await.unwrap();
+    let station = holder(&ch, &session).await.expect("left is held");
+    // Three timeouts of empty calls, five a timeout.
+    let beats = (3.0 * TIMEOUT_S / 0.1) as usize;
+    for _ in 0..beats {
+        assert_eq!(send(&ch, ALICE, &handle, vec![], false).await.unwrap(), 0);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(holder(&ch, &session).await, Some(station));
+    // Silent: timed out within WAIT, the stream ended with DEADLINE_EXCEEDED.
+    let ended = tokio::time::timeout(WAIT, async {
+        loop {
+            match rx.message().await {
+                Ok(Some(_)) => continue,
+                Ok(None) => return None,
+                Err(status) => return Some(status.code()),
+            }
+        }
+    })
+    .await;
+    assert_eq!(ended, Ok(Some(Code::DeadlineExceeded)));
+    assert_eq!(holder(&ch, &session).await, None);
 }
 
 /// One HTTP/1.1 request; the response's head, lower-cased.

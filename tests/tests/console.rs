@@ -10,7 +10,8 @@
 //! and started again on its port (the page says so and comes back by itself);
 //! a gamepad driving an instrument and its vibration growing with the force; an
 //! instrument another station holds waited for and taken once let go; a live
-//! view left releasing its WebGL context;
+//! view left releasing its WebGL context; a page drawing no frames (a hidden
+//! tab) keeping its instrument past the station timeout;
 //! the console over TLS (a self-signed certificate made here), an instrument
 //! driven there over HTTP/2. Then, on a server
 //! without tokens, a page opened by a name that is not the server's told that its

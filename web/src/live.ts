@@ -137,6 +137,26 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   const sampler = new PoseSampler();
   const sendStats = { calls: 0, poses: 0, lastBatch: 0, spacingMs: NaN };
 
+  /** When the last SendPoses call was answered, ms on the page's clock. */
+  let lastCallAt = -Infinity;
+
+  // The heartbeat: poses are sampled at each animation frame, and a hidden tab
+  // draws none, so a page whose tab is hidden would go silent and lose its
+  // instruments after the server's station timeout (5 s by default). A call
+  // with no poses every second keeps the station (timers still run in a hidden
+  // tab, once a second at least); the instruments stay where they were.
+  const HEARTBEAT_MS = 1000;
+  const beat = setInterval(() => {
+    if (!handle || sending || performance.now() - lastCallAt < HEARTBEAT_MS) return;
+    sending = true;
+    station
+      .sendPoses({ handle, poses: [] }, { signal })
+      .then(() => (lastCallAt = performance.now()))
+      .catch(() => {}) // the Attach stream says what went wrong
+      .finally(() => (sending = false));
+  }, HEARTBEAT_MS);
+  signal.addEventListener("abort", () => clearInterval(beat));
+
   /** Sends the waiting poses, a batch per call, one call at a time. */
   async function sendPoses(): Promise<void> {
     if (!handle || sending || sampler.pending.length === 0) return;
@@ -151,6 +171,7 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
         });
         await station.sendPoses({ handle, poses }, { signal });
         sendStats.calls++;
+        lastCallAt = performance.now();
         sendStats.poses += poses.length;
         sendStats.lastBatch = poses.length;
         const per = drivers.size;

@@ -289,6 +289,21 @@ try {
   await liveState(pad, "live");
   await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip, null, { timeout: T });
   console.log(`ok a claimed instrument was waited for ("${waiting}") and taken once let go`);
+
+  // A hidden tab draws no frames, so it samples no poses: with the frame loop
+  // stopped, the station stays live past the server's station timeout (5 s) on
+  // its heartbeat.
+  step = "hidden tab";
+  await pad.evaluate(() => {
+    window.__states = [];
+    const c = document.querySelector("#connection");
+    new MutationObserver(() => window.__states.push(c.dataset.state)).observe(c, { attributes: true });
+    window.requestAnimationFrame = () => 0;
+  });
+  await pad.waitForTimeout(6500);
+  const states = await pad.evaluate(() => window.__states.filter((s) => s !== "live"));
+  check(states.length === 0, `without frames the station went ${states.join(", ")}`);
+  console.log("ok a page drawing no frames kept its instrument past the station timeout");
   await pad.close();
 
   // A live view left frees its WebGL context at once: a browser keeps about 16,

@@ -107,6 +107,11 @@ impl Attachments {
             }
         };
         let mut queued = 0u32;
+        // A call with nothing in it is the station's heartbeat: a page whose
+        // instruments do not move (a hidden tab draws no frames, so samples no
+        // poses) stays a station while it calls.
+        let heartbeat = (request.poses.is_empty() && !request.leave)
+            .then(|| v1::station_message::Kind::Heartbeat(v1::Heartbeat::default()));
         let leave = request
             .leave
             .then(|| v1::station_message::Kind::Leave(v1::Leave::default()));
@@ -114,7 +119,8 @@ impl Attachments {
             .poses
             .into_iter()
             .map(v1::station_message::Kind::Pose)
-            .chain(leave);
+            .chain(leave)
+            .chain(heartbeat);
         for kind in messages {
             let is_pose = matches!(kind, v1::station_message::Kind::Pose(_));
             match queue.try_send(v1::StationMessage { kind: Some(kind) }) {
