@@ -310,34 +310,15 @@ async fn an_empty_send_is_a_heartbeat() {
     assert_eq!(holder(&ch, &session).await, None);
 }
 
-/// One HTTP/1.1 request; the response's head, lower-cased.
 /// An Attach refused because the server's attached stations are at their limit
 /// leaves nothing behind: the station used to be opened first (its instrument
 /// claimed, its joining announced) and then refused a handle, and stayed holding
 /// `left` with nobody to leave, until an instructor evicted it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_attach_refused_at_the_limit_leaves_no_station_behind() {
-    let mut tokens = Tokens::default();
-    tokens.insert(
-        ALICE.unwrap(),
-        Caller {
-            name: "alice".into(),
-            role: Role::Trainee,
-            instruments: None,
-        },
-    );
-    tokens.insert(
-        TEACHER.unwrap(),
-        Caller {
-            name: "teacher".into(),
-            role: Role::Instructor,
-            instruments: None,
-        },
-    );
     let server = TestServer::start(ServeConfig {
-        tokens: Some(tokens),
         max_attached: Some(1),
-        ..ServeConfig::default()
+        ..config()
     })
     .await;
     let ch = server.channel().await;
