@@ -121,6 +121,22 @@ impl TestServer {
     }
 }
 
+/// The status a stream ends with (`None`: it ended cleanly), reading and dropping
+/// what comes before it; fails the test unless it ends within [`WAIT`].
+pub async fn final_status<T>(rx: &mut Streaming<T>) -> Option<Status> {
+    tokio::time::timeout(WAIT, async {
+        loop {
+            match rx.message().await {
+                Ok(Some(_)) => continue,
+                Ok(None) => return None,
+                Err(status) => return Some(status),
+            }
+        }
+    })
+    .await
+    .expect("the stream ends")
+}
+
 /// A request with a bearer token, if any.
 pub fn with_token<T>(message: T, token: Option<&str>) -> Request<T> {
     let mut request = Request::new(message);

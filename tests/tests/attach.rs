@@ -229,17 +229,8 @@ async fn a_handle_is_honoured_only_for_its_own_token_and_while_its_station_lasts
     // Leaving ends the stream and releases the instrument; the handle is gone.
     assert!(holder(&ch, &session).await.is_some());
     send(&ch, ALICE, &handle, vec![], true).await.unwrap();
-    let ended = tokio::time::timeout(WAIT, async {
-        loop {
-            match rx.message().await {
-                Ok(Some(_)) => continue,
-                other => return other.map(|_| ()),
-            }
-        }
-    })
-    .await
-    .expect("the stream ends after leave");
-    assert!(ended.is_ok(), "{ended:?}");
+    let ended = final_status(&mut rx).await;
+    assert!(ended.is_none(), "{ended:?}");
     let after = send(&ch, ALICE, &handle, vec![], false).await;
     assert_eq!(after.unwrap_err().code(), Code::NotFound);
     assert_eq!(holder(&ch, &session).await, None);
@@ -296,17 +287,8 @@ async fn an_empty_send_is_a_heartbeat() {
     }
     assert_eq!(holder(&ch, &session).await, Some(station));
     // Silent: timed out within WAIT, the stream ended with DEADLINE_EXCEEDED.
-    let ended = tokio::time::timeout(WAIT, async {
-        loop {
-            match rx.message().await {
-                Ok(Some(_)) => continue,
-                Ok(None) => return None,
-                Err(status) => return Some(status.code()),
-            }
-        }
-    })
-    .await;
-    assert_eq!(ended, Ok(Some(Code::DeadlineExceeded)));
+    let ended = final_status(&mut rx).await.map(|s| s.code());
+    assert_eq!(ended, Some(Code::DeadlineExceeded));
     assert_eq!(holder(&ch, &session).await, None);
 }
 

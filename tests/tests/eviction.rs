@@ -103,18 +103,9 @@ async fn an_instructor_evicts_a_station_and_a_trainee_may_not() {
         .unwrap();
 
     // The evicted station's stream ends saying who and why.
-    let status = tokio::time::timeout(WAIT, async {
-        loop {
-            match trainee.rx.message().await {
-                Ok(Some(_)) => continue,
-                Ok(None) => return None,
-                Err(s) => return Some(s),
-            }
-        }
-    })
-    .await
-    .unwrap()
-    .expect("an error status");
+    let status = final_status(&mut trainee.rx)
+        .await
+        .expect("an error status");
     assert_eq!(status.code(), Code::Aborted, "{status:?}");
     for words in ["evicted", "Dr Ayache", "hands off the liver"] {
         assert!(status.message().contains(words), "{status:?}");

@@ -80,22 +80,6 @@ async fn holder(ch: &Channel, session: &str, instrument: &str) -> Option<u64> {
         .and_then(|h| h.station_id)
 }
 
-/// The status a station's stream ends with, reading (and dropping) what comes
-/// before it.
-async fn final_status(rx: &mut tonic::Streaming<v1::ServerMessage>) -> Option<tonic::Status> {
-    tokio::time::timeout(WAIT, async {
-        loop {
-            match rx.message().await {
-                Ok(Some(_)) => continue,
-                Ok(None) => return None,
-                Err(status) => return Some(status),
-            }
-        }
-    })
-    .await
-    .expect("the stream ends")
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_silent_station_loses_its_claim_with_an_event_and_another_may_claim_it() {
     let server = server().await;
