@@ -288,6 +288,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     page.dataset.tick = String(stats.tick);
     page.dataset.frames = String(stats.frames);
     page.dataset.drawn = String(view.drawn);
+    // Geometries on the GPU: the same after a reconnect as before it.
+    page.dataset.geometries = String(view.renderer.info.memory.geometries);
     page.dataset.maxDisplacementMm = (view.maxDisplacement * 1000).toFixed(3);
     page.dataset.surfaceChangeMm = (view.maxChange * 1000).toFixed(3);
     if (driving) {

@@ -304,6 +304,29 @@ try {
   const states = await pad.evaluate(() => window.__states.filter((s) => s !== "live"));
   check(states.length === 0, `without frames the station went ${states.join(", ")}`);
   console.log("ok a page drawing no frames kept its instrument past the station timeout");
+
+  // A reconnect builds the scene again and frees what the last one built: the
+  // GPU holds as many geometries after it as before. Poses and heartbeats
+  // answered UNAVAILABLE on the way never reach the server, which times the
+  // station out.
+  step = "reconnect";
+  await pad.reload();
+  await liveState(pad, "live");
+  const drawnNow = () => pad.$eval("#live", (e) => Number(e.dataset.drawn));
+  const drawnPast = (n) => pad.waitForFunction((n) => Number(document.querySelector("#live")?.dataset.drawn) > n, n, { timeout: T });
+  await drawnPast(await drawnNow());
+  const geometries = await pad.$eval("#live", (e) => Number(e.dataset.geometries));
+  const sends = "**/laparo.v1.Station/SendPoses";
+  await pad.route(sends, (r) =>
+    r.fulfill({ status: 200, headers: { "content-type": "application/grpc-web+proto", "grpc-status": "14", "grpc-message": "dropped" } }),
+  );
+  await liveState(pad, "reconnecting");
+  await pad.unroute(sends);
+  await liveState(pad, "live");
+  await drawnPast(await drawnNow());
+  const again = await pad.$eval("#live", (e) => Number(e.dataset.geometries));
+  check(geometries > 0 && again === geometries, `${geometries} geometries on the GPU before the reconnect, ${again} after`);
+  console.log(`ok a reconnect built the scene again and freed the last one: ${again} geometries on the GPU`);
   await pad.close();
 
   // A live view left frees its WebGL context at once: a browser keeps about 16,

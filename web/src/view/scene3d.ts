@@ -33,6 +33,17 @@ interface InstrumentView {
   heldPoints: THREE.Points;
 }
 
+/** Frees the GPU buffers and programs of `root` and everything under it: each
+ * geometry and material. (The arrows' line and cone geometries are shared by
+ * every arrow; one still drawn uploads them again.) */
+function release(root: THREE.Object3D): void {
+  root.traverse((o) => {
+    const m = o as THREE.Object3D & { geometry?: THREE.BufferGeometry; material?: THREE.Material | THREE.Material[] };
+    m.geometry?.dispose();
+    for (const material of [m.material ?? []].flat()) material.dispose();
+  });
+}
+
 export class SceneView {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
@@ -92,14 +103,15 @@ export class SceneView {
 
   /** Builds the liver, instruments and trocars of a scene; frames the camera. */
   setScene(desc: SceneDescription): void {
-    if (this.liver) {
-      this.scene.remove(this.liver);
-      this.liver.geometry.dispose();
+    // A reconnect sets the scene again: what the last one built is freed, not
+    // left to the GPU.
+    const old: THREE.Object3D[] = this.liver ? [this.liver] : [];
+    for (const v of this.instruments.values()) old.push(v.shaft, v.trocar, v.arrow, v.heldPoints);
+    for (const o of old) {
+      this.scene.remove(o);
+      release(o);
     }
-    for (const v of this.instruments.values()) {
-      this.scene.remove(v.shaft, v.trocar, v.arrow, v.heldPoints);
-      v.heldPoints.geometry.dispose();
-    }
+    this.liver = null;
     this.instruments.clear();
     const surface = desc.restSurface;
     this.rest = Float32Array.from(surface?.positions ?? []);
@@ -290,11 +302,7 @@ export class SceneView {
    * drop the oldest ("Too many active WebGL contexts"). */
   dispose(): void {
     this.sizes.disconnect();
-    this.scene.traverse((o) => {
-      const m = o as THREE.Object3D & { geometry?: THREE.BufferGeometry; material?: THREE.Material | THREE.Material[] };
-      m.geometry?.dispose();
-      for (const material of [m.material ?? []].flat()) material.dispose();
-    });
+    release(this.scene);
     this.controls.dispose();
     this.renderer.dispose();
     this.renderer.forceContextLoss();
