@@ -152,13 +152,17 @@ fn the_demo_presses_the_liver_and_reports() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
     let recovered = dir.join("recovered.mcap");
-    laparo(&[
+    let said = laparo(&[
         "recordings".as_ref(),
         "recover".as_ref(),
         cut.as_os_str(),
         "--out".as_ref(),
         recovered.as_os_str(),
     ]);
+    assert!(
+        said.contains("after the last complete chunk left out (what was being written)"),
+        "{said}"
+    );
     let again = laparo(&["replay".as_ref(), recovered.as_os_str()]);
     assert!(again.contains("ticks"), "{again}");
     let _ = std::fs::remove_dir_all(&dir);

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Subcommand;
 use laparo_proto::text::printable;
+use laparo_server::recording::recover::lost;
 use laparo_server::recording::{FileState, list, recover};
 
 use super::BoxError;
@@ -53,18 +54,23 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
         RecordingsCommand::Recover { file, out } => {
             let out = out.unwrap_or_else(|| file.clone());
             let r = recover(&file, &out)?;
+            let lost = lost(&r);
             say!(
-                "{} → {}: {} chunks, {} messages kept ({} bytes), {} bytes after the last complete chunk left out{}",
+                "{} → {}: {} chunks, {} messages kept ({} bytes); {}",
                 file.display(),
                 out.display(),
                 r.chunks,
                 r.messages,
                 r.bytes_kept,
-                r.bytes_dropped,
-                if r.was_complete {
-                    "; it was complete"
+                if !lost.is_empty() {
+                    format!("left out: {lost}")
+                } else if r.was_complete {
+                    "nothing left out (it had its footer already)".to_string()
                 } else {
-                    ""
+                    format!(
+                        "{} bytes after the last complete chunk left out (what was being written)",
+                        r.bytes_dropped
+                    )
                 }
             );
             Ok(())

@@ -2,18 +2,31 @@
 //! possibly inside a chunk, with no summary and no footer.
 //!
 //! The file is read record by record; every record before the first that is cut
-//! short or damaged is kept — a chunk only whole, when it decompresses completely
-//! and its CRC matches — and the kept schemas, channels (with their ids), messages
-//! (with their sequence numbers and times) and metadata are written anew, with a
-//! summary, indexes and a footer. So at most what the recorder had not yet closed
-//! into a chunk (the last second, see [`super::writer::FLUSH_INTERVAL`]) is lost.
+//! short or does not parse is kept — a chunk only whole, when it decompresses
+//! completely and its CRC matches — and the kept schemas, channels (with their
+//! ids), messages (with their sequence numbers and times) and metadata are written
+//! anew, with a summary, indexes and a footer. So at most what the recorder had not
+//! yet closed into a chunk (the last second, see [`super::writer::FLUSH_INTERVAL`])
+//! is lost. A chunk whose record is whole but whose contents are damaged (a CRC
+//! that does not match, data that does not decompress) is left out and the walk
+//! goes on after it, since its stated length still frames the records that follow;
+//! messages of a channel that only such a chunk declared are left out too.
 //! A file with nothing recoverable (no `laparo.scene` metadata before the damage:
 //! junk after the magic, a file cut inside its first chunk) is an error
 //! ([`RecoverError::NothingToRecover`]), and no file is written.
+//!
+//! What is written: a file beside the output (`OUT.<pid>.part`, created new) renamed
+//! over it once complete, so the output is either as it was or whole. The output
+//! must be a regular file or absent: a device, a symbolic link or a directory is
+//! refused, never replaced. Recovering a file in place drops only what a killed
+//! server leaves unfinished; when the recovery would drop more (a damaged chunk, or
+//! anything of a file that had its footer), the input is left as it is and the
+//! recovery must be written elsewhere ([`RecoverError::WouldLose`]).
 
+use std::collections::HashSet;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
@@ -37,6 +50,20 @@ pub struct Recovery {
     pub was_complete: bool,
     /// Why reading stopped before the end, if it did.
     pub stopped_at: Option<String>,
+    /// Chunks left out whole because their contents were damaged, each with why.
+    pub damaged_chunks: Vec<String>,
+    /// Messages left out because their channel was declared only in a damaged chunk.
+    pub orphaned_messages: u64,
+}
+
+impl Recovery {
+    /// Whether anything besides an unfinished tail (what a killed server leaves)
+    /// was left out: a damaged chunk, or part of a file that had its footer.
+    pub fn lost_more_than_a_tail(&self) -> bool {
+        !self.damaged_chunks.is_empty()
+            || self.orphaned_messages > 0
+            || (self.was_complete && self.stopped_at.is_some())
+    }
 }
 
 /// Why a file cannot be recovered.
@@ -51,6 +78,18 @@ pub enum RecoverError {
     NotMcap { file: String },
     #[error("cannot write the recovered recording {file}: {message}")]
     Write { file: String, message: String },
+    /// The output exists and is not a regular file.
+    #[error(
+        "will not write the recovered recording over {file}: it is a {kind}, not a \
+         regular file; give another --out"
+    )]
+    OutputNotRegular { file: String, kind: &'static str },
+    /// A recovery in place would drop more than an unfinished tail.
+    #[error(
+        "{file} was left as it is: recovering it in place would leave out {what}; \
+         give --out OTHER.mcap to write what can be recovered beside it"
+    )]
+    WouldLose { file: String, what: String },
     /// Nothing before the first record cut short or damaged says what the file
     /// records (its `laparo.scene` metadata record): a recovered file would be an
     /// empty MCAP file, so none is written.
@@ -77,16 +116,38 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         file: out_name.clone(),
         message,
     };
+    let in_place = match std::fs::symlink_metadata(output) {
+        Ok(meta) if !meta.is_file() => {
+            return Err(RecoverError::OutputNotRegular {
+                file: out_name,
+                kind: kind_of(&meta),
+            });
+        }
+        Ok(_) => same_file(input, output),
+        Err(_) => false,
+    };
     let mut part = output.as_os_str().to_owned();
-    part.push(".part");
-    let part = std::path::PathBuf::from(part);
+    part.push(format!(".{}.part", std::process::id()));
+    let part = PathBuf::from(part);
+    let mut created = false;
     let result = (|| {
-        let out = File::create(&part).map_err(|e| write_error(e.to_string()))?;
+        let out = File::options()
+            .write(true)
+            .create_new(true)
+            .open(&part)
+            .map_err(|e| write_error(format!("{}: {e}", part.display())))?;
+        created = true;
         let (recovery, out) =
             recover_source(&file, &source, BufWriter::new(out)).map_err(|e| match e {
                 RecoverError::Write { message, .. } => write_error(message),
                 e => e,
             })?;
+        if in_place && recovery.lost_more_than_a_tail() {
+            return Err(RecoverError::WouldLose {
+                file: file.clone(),
+                what: lost(&recovery),
+            });
+        }
         let out = out
             .into_inner()
             .map_err(|e| write_error(e.into_error().to_string()))?;
@@ -94,10 +155,69 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         std::fs::rename(&part, output).map_err(|e| write_error(e.to_string()))?;
         Ok(recovery)
     })();
-    if result.is_err() {
+    if result.is_err() && created {
         let _ = std::fs::remove_file(&part);
     }
     result
+}
+
+/// What a recovery left out besides the unfinished tail, in words.
+pub fn lost(recovery: &Recovery) -> String {
+    let mut what = Vec::new();
+    match recovery.damaged_chunks.len() {
+        0 => {}
+        1 => what.push(format!("a damaged chunk ({})", recovery.damaged_chunks[0])),
+        n => what.push(format!(
+            "{n} damaged chunks (the first: {})",
+            recovery.damaged_chunks[0]
+        )),
+    }
+    if recovery.orphaned_messages > 0 {
+        what.push(format!(
+            "{} messages of channels declared only in a damaged chunk",
+            recovery.orphaned_messages
+        ));
+    }
+    if let Some(why) = &recovery.stopped_at {
+        what.push(format!("{} bytes after {why}", recovery.bytes_dropped));
+    }
+    what.join(", ")
+}
+
+/// Whether `a` and `b` name the same file (after following links).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+/// What kind of file `meta` describes, for [`RecoverError::OutputNotRegular`].
+fn kind_of(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_symlink() {
+        return "symbolic link";
+    }
+    if t.is_dir() {
+        return "directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "character device";
+        }
+        if t.is_block_device() {
+            return "block device";
+        }
+        if t.is_socket() {
+            return "socket";
+        }
+    }
+    "special file"
 }
 
 /// Recovers the recording held in `bytes` (named `file` in errors) onto `out`.
@@ -140,6 +260,7 @@ fn recover_source<W: Write + Seek>(
     let mut writer: Option<mcap::Writer<W>> = None;
     let mut profile = String::new();
     let mut described = false;
+    let mut known = Known::default();
     let mut at = magic_len;
     loop {
         let framed = match frame_at(source, at, size) {
@@ -169,8 +290,12 @@ fn recover_source<W: Write + Seek>(
                     records
                 }
                 Err(e) => {
-                    recovery.stopped_at = Some(format!("{e} (the chunk ending at byte {end})"));
-                    break;
+                    // The record framed whole: what follows it still frames.
+                    recovery
+                        .damaged_chunks
+                        .push(format!("{e}, bytes {}..{end}", framed.at));
+                    at = end;
+                    continue;
                 }
             },
             Record::DataEnd(_) | Record::Footer(_) => {
@@ -192,8 +317,10 @@ fn recover_source<W: Write + Seek>(
                 ),
             };
             described |= matches!(&record, Record::Metadata(m) if m.name == METADATA_NAME);
-            if keep(w, record).map_err(write)? {
-                recovery.messages += 1;
+            match keep(w, &mut known, record).map_err(write)? {
+                Kept::Message => recovery.messages += 1,
+                Kept::Orphan => recovery.orphaned_messages += 1,
+                Kept::Other => {}
             }
         }
         recovery.bytes_kept = end;
@@ -214,18 +341,39 @@ fn recover_source<W: Write + Seek>(
     Ok((recovery, writer.into_inner()))
 }
 
+/// The schema and channel ids written so far: a record that refers to one
+/// declared only in a damaged chunk is left out.
+#[derive(Default)]
+struct Known {
+    schemas: HashSet<u16>,
+    channels: HashSet<u16>,
+}
+
+/// What [`keep`] did with a record.
+enum Kept {
+    Message,
+    /// A message (or a channel) whose channel (or schema) was never written.
+    Orphan,
+    Other,
+}
+
 /// Writes the records worth carrying over (schemas, channels with their ids,
-/// messages, metadata); indexes and statistics are written anew. True for a
-/// message.
+/// messages, metadata); indexes and statistics are written anew.
 fn keep<W: Write + Seek>(
     writer: &mut mcap::Writer<W>,
+    known: &mut Known,
     record: Record<'_>,
-) -> Result<bool, McapError> {
+) -> Result<Kept, McapError> {
     match record {
         Record::Schema { header, data } => {
             writer.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
+            known.schemas.insert(header.id);
         }
         Record::Channel(c) => {
+            // Schema id 0: a channel without a schema.
+            if c.schema_id != 0 && !known.schemas.contains(&c.schema_id) {
+                return Ok(Kept::Other);
+            }
             writer.add_channel_with_id(
                 c.id,
                 c.schema_id,
@@ -233,13 +381,17 @@ fn keep<W: Write + Seek>(
                 &c.message_encoding,
                 &c.metadata,
             )?;
+            known.channels.insert(c.id);
         }
         Record::Message { header, data } => {
+            if !known.channels.contains(&header.channel_id) {
+                return Ok(Kept::Orphan);
+            }
             writer.write_to_known_channel(&header, &data)?;
-            return Ok(true);
+            return Ok(Kept::Message);
         }
         Record::Metadata(m) => writer.write_metadata(&m)?,
         _ => {}
     }
-    Ok(false)
+    Ok(Kept::Other)
 }

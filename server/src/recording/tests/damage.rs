@@ -210,3 +210,97 @@ fn a_recovery_over_an_open_recording_leaves_it_reading_what_was_written() {
     assert!(now.is_complete());
     assert_eq!(now.surfaces().unwrap()[..], before[..10]);
 }
+
+#[test]
+fn a_damaged_chunk_is_left_out_and_every_chunk_after_it_kept() {
+    let dir = temp();
+    let full = dir.path().join("full.mcap");
+    let (boundaries, bytes) = chunked(&full, 24, 4);
+    let all = raw_messages(&full);
+    // Damage the compressed data of the second chunk: its record still frames,
+    // its contents do not decompress.
+    let ((b1, n1), (b2, n2)) = (boundaries[1], boundaries[2]);
+    let chunks = Recording::open(&full)
+        .unwrap()
+        .mcap_summary()
+        .chunk_indexes
+        .clone();
+    let chunk = chunks
+        .iter()
+        .find(|c| (b1..b2).contains(&c.chunk_start_offset))
+        .expect("a chunk between the first two flushes")
+        .clone();
+    let mut damaged = bytes.clone();
+    damaged[(chunk.chunk_start_offset + chunk.chunk_length - 16) as usize] ^= 0x5A;
+    let path = dir.path().join("damaged.mcap");
+    std::fs::write(&path, &damaged).unwrap();
+
+    let out = dir.path().join("fixed.mcap");
+    let report = recover(&path, &out).unwrap();
+    assert!(report.was_complete);
+    assert_eq!(report.damaged_chunks.len(), 1, "{report:?}");
+    let at = format!("bytes {}..", chunk.chunk_start_offset);
+    assert!(report.damaged_chunks[0].contains(&at), "{report:?}");
+    assert!(report.stopped_at.is_none(), "{report:?}");
+    assert_eq!(report.chunks as usize, chunks.len() - 1);
+    // Every message but the damaged chunk's, in order.
+    let (n1, n2) = (n1 as usize, n2 as usize);
+    let expected: Vec<_> = all[..n1].iter().chain(&all[n2..]).cloned().collect();
+    assert_eq!(report.orphaned_messages, 0);
+    assert_eq!(raw_messages(&out), expected);
+    assert_eq!(report.messages as usize, expected.len());
+    assert!(Recording::open(&out).unwrap().is_complete());
+
+    // In place, the damaged chunk would be lost for good: refused, file untouched.
+    let err = recover(&path, &path).unwrap_err();
+    assert!(matches!(err, RecoverError::WouldLose { .. }), "{err}");
+    let text = err.to_string();
+    assert!(
+        text.contains("damaged chunk") && text.contains("--out"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read(&path).unwrap(), damaged);
+    // A file cut short (what a killed server leaves) still recovers in place.
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..(b2 + 5) as usize]).unwrap();
+    let report = recover(&cut, &cut).unwrap();
+    assert!(!report.lost_more_than_a_tail(), "{report:?}");
+    assert_eq!(raw_messages(&cut), all[..n2]);
+}
+
+#[test]
+fn a_recovery_writes_only_a_regular_file_and_leaves_others_alone() {
+    let dir = temp();
+    let good = dir.path().join("good.mcap");
+    record_script(&good, 10);
+    let outputs = dir.path().join("outputs");
+    std::fs::create_dir(&outputs).unwrap();
+    let link = dir.path().join("link.mcap");
+    let target = dir.path().join("target.txt");
+    std::fs::write(&target, b"keep me").unwrap();
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    for (out, kind) in [(&outputs, "directory"), (&link, "symbolic link")] {
+        let err = recover(&good, out).unwrap_err();
+        assert!(
+            matches!(&err, RecoverError::OutputNotRegular { kind: k, .. } if *k == kind),
+            "{err}"
+        );
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+    }
+    assert!(std::fs::symlink_metadata(&link).unwrap().is_symlink());
+    assert_eq!(std::fs::read(&target).unwrap(), b"keep me");
+    // A file of the user's beside the output, named as a scratch file might be,
+    // is not touched.
+    let out = dir.path().join("fixed.mcap");
+    let theirs = dir.path().join("fixed.mcap.part");
+    std::fs::write(&theirs, b"mine").unwrap();
+    recover(&good, &out).unwrap();
+    assert_eq!(std::fs::read(&theirs).unwrap(), b"mine");
+    assert_eq!(raw_messages(&out), raw_messages(&good));
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.ends_with(".part"))
+        .collect();
+    assert_eq!(names, ["fixed.mcap.part"]);
+}
