@@ -128,11 +128,11 @@ pub enum ConnectError {
     #[error("server URL {url:?} is plain http: a CA certificate only applies to https")]
     CaWithoutTls { url: String },
     /// The CA certificate file cannot be read.
-    #[error("CA certificate {} for {url} cannot be read: {source}", path.display())]
+    #[error("CA certificate {} for {url} {source}", path.display())]
     ReadCa {
         url: String,
         path: PathBuf,
-        source: std::io::Error,
+        source: laparo_server::engine::scene::FileError,
     },
     /// The CA certificate file holds no certificate.
     #[error("{}: not a PEM certificate: {reason}", path.display())]

@@ -254,3 +254,50 @@ async fn tls_with_tokens_serves_a_public_address() {
     server.await.unwrap().unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tls_files_that_cannot_serve_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let pair = |name: &str| {
+        let cert = rcgen::generate_simple_self_signed(vec![name.to_string()]).unwrap();
+        let (c, k) = (
+            dir.path().join(format!("{name}.crt")),
+            dir.path().join(format!("{name}.key")),
+        );
+        std::fs::write(&c, cert.cert.pem()).unwrap();
+        std::fs::write(&k, cert.signing_key.serialize_pem()).unwrap();
+        (c, k)
+    };
+    let (a_cert, a_key) = pair("a.example");
+    let (_, b_key) = pair("b.example");
+    let serve = |cert: &std::path::Path, key: &std::path::Path| {
+        let config = ServeConfig {
+            tls: Some(laparo_server::service::TlsFiles {
+                cert: cert.to_path_buf(),
+                key: key.to_path_buf(),
+            }),
+            ..ServeConfig::default()
+        };
+        async move {
+            let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+            laparo_server::service::serve(config, listener, async {})
+                .await
+                .unwrap_err()
+                .to_string()
+        }
+    };
+    // A device is not read (it would never end), and says what it is.
+    let zero = std::path::Path::new("/dev/zero");
+    let e = serve(zero, &a_key).await;
+    assert!(
+        e.contains("/dev/zero is a character device, not a regular file"),
+        "{e}"
+    );
+    // A certificate with another's key says why, not just "transport error".
+    for (cert, key) in [(&a_cert, &b_key), (&a_key, &a_cert)] {
+        let e = serve(cert, key).await;
+        assert!(e.len() > "TLS: transport error".len() + 20, "{e}");
+        assert!(e.contains(&*key.display().to_string()), "{e}");
+        assert!(e.contains("its own key"), "{e}");
+    }
+}

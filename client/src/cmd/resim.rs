@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use laparo_server::recording::{TOPIC_SURFACE, resimulate_as};
+use laparo_server::engine::scene::{MAX_SCENE_BYTES, read_bounded};
+use laparo_server::recording::{ResimError, TOPIC_SURFACE, resimulate_as};
 
 use super::BoxError;
 use super::out::say;
@@ -32,8 +33,10 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
     let recording = open_recording(&args.file)?;
     let mut meta = recording.meta().clone();
     if let Some(scene) = &args.scene {
-        meta.scene_toml =
-            std::fs::read_to_string(scene).map_err(|e| format!("{}: {e}", scene.display()))?;
+        let bytes = read_bounded(scene, None, MAX_SCENE_BYTES)
+            .map_err(|e| format!("{} {e}", scene.display()))?;
+        meta.scene_toml = String::from_utf8(bytes)
+            .map_err(|e| format!("{} is not UTF-8 text: {e}", scene.display()))?;
         // A bare file name's folder is the working one (its parent is empty).
         meta.scene_dir = scene
             .parent()
@@ -55,6 +58,15 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
             eprint!("\r  tick {tick} of {}", total.unwrap_or(0));
             next_line += Duration::from_secs(1);
             shown = true;
+        }
+    })
+    .map_err(|e| -> BoxError {
+        match (&args.scene, e) {
+            // The scene given in place of the recorded one is what does not build.
+            (Some(file), ResimError::Scene(e)) => {
+                format!("{} does not build: {e}", file.display()).into()
+            }
+            (_, e) => e.into(),
         }
     })?;
     if shown {

@@ -11,11 +11,17 @@ use rustls_pki_types::CertificateDer;
 use rustls_pki_types::pem::PemObject;
 use tonic::transport::{Certificate, ClientTlsConfig};
 
+use laparo_server::engine::scene::read_bounded;
+
 use super::ConnectError;
+
+/// Largest CA certificate file read, bytes: 1 MiB (a bundle of every public root
+/// CA is about 200 kB).
+pub const MAX_CA_BYTES: u64 = 1 << 20;
 
 /// A TLS configuration trusting the CA certificates in the PEM file at `path`.
 pub fn tls_config(url: &str, path: &Path) -> Result<ClientTlsConfig, ConnectError> {
-    let pem = std::fs::read(path).map_err(|source| ConnectError::ReadCa {
+    let pem = read_bounded(path, None, MAX_CA_BYTES).map_err(|source| ConnectError::ReadCa {
         url: url.to_owned(),
         path: path.to_owned(),
         source,

@@ -28,6 +28,8 @@ use std::sync::Arc;
 use serde::Deserialize;
 use tonic::{Request, Status};
 
+use crate::engine::scene::{FileError, read_bounded};
+
 /// What a caller may do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -98,6 +100,13 @@ pub enum TokenListError {
     Toml(#[from] toml::de::Error),
     #[error("tokens[{index}].token: at least 8 characters")]
     TooShort { index: usize },
+    #[error(
+        "tokens[{index}].token: visible ASCII only (no spaces, control characters or \
+         non-ASCII letters: clients could not send it)"
+    )]
+    NotVisibleAscii { index: usize },
+    #[error("no tokens: a server with an empty list would refuse every call")]
+    Empty,
     #[error("tokens[{index}].token: listed twice")]
     Twice { index: usize },
 }
@@ -105,17 +114,17 @@ pub enum TokenListError {
 /// A tokens file that cannot be used; each names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum TokensError {
-    #[error("{}: {source}", path.display())]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    #[error("{} {source}", path.display())]
+    Read { path: PathBuf, source: FileError },
     #[error("{}: {source}", path.display())]
     Invalid {
         path: PathBuf,
         source: TokenListError,
     },
 }
+
+/// Largest tokens file read, bytes: 1 MiB, some ten thousand tokens.
+pub const MAX_TOKENS_BYTES: u64 = 1 << 20;
 
 /// The tokens a server accepts.
 #[derive(Clone, Debug, Default)]
@@ -124,11 +133,18 @@ pub struct Tokens {
 }
 
 impl Tokens {
-    /// Reads a tokens file; errors name the file and what is wrong.
+    /// Reads a tokens file (a regular file of at most [`MAX_TOKENS_BYTES`]); errors
+    /// name the file and what is wrong.
     pub fn load(path: &Path) -> Result<Self, TokensError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TokensError::Read {
+        let read = |source| TokensError::Read {
             path: path.to_path_buf(),
             source,
+        };
+        let bytes = read_bounded(path, None, MAX_TOKENS_BYTES).map_err(read)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            read(FileError::Io(std::io::Error::other(format!(
+                "not UTF-8: {e}"
+            ))))
         })?;
         Self::parse(&text).map_err(|source| TokensError::Invalid {
             path: path.to_path_buf(),
@@ -136,12 +152,20 @@ impl Tokens {
         })
     }
 
-    /// Reads the text of a tokens file: every token at least 8 characters and
-    /// listed once.
+    /// Reads the text of a tokens file: at least one token, every token at least 8
+    /// characters of visible ASCII (what an `authorization` header carries and
+    /// clients send: a space, a control character or a non-ASCII letter would make
+    /// a token no client can present) and listed once.
     pub fn parse(text: &str) -> Result<Self, TokenListError> {
         let file: TokensFile = toml::from_str(text)?;
+        if file.tokens.is_empty() {
+            return Err(TokenListError::Empty);
+        }
         let mut by_token = HashMap::new();
         for (k, t) in file.tokens.into_iter().enumerate() {
+            if !t.token.bytes().all(|b| b.is_ascii_graphic()) {
+                return Err(TokenListError::NotVisibleAscii { index: k });
+            }
             if t.token.len() < 8 {
                 return Err(TokenListError::TooShort { index: k });
             }
@@ -213,4 +237,60 @@ pub fn caller<T>(request: &Request<T>) -> Result<Caller, Status> {
         .get::<Caller>()
         .cloned()
         .ok_or_else(|| Status::internal("the request was not authenticated"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(token: &str) -> String {
+        format!("[[tokens]]\ntoken = {token:?}\nrole = \"trainee\"\n")
+    }
+
+    #[test]
+    fn a_token_no_client_could_send_is_refused_by_its_place() {
+        assert!(Tokens::parse(&entry("a-long-random-string")).is_ok());
+        for bad in [
+            " leading-space",
+            "trailing-space ",
+            "in side-space",
+            "line\nbreak-1",
+            "naïve-token-é",
+        ] {
+            let text = entry("a-long-random-string") + &entry(bad);
+            let e = Tokens::parse(&text).unwrap_err();
+            assert!(
+                matches!(e, TokenListError::NotVisibleAscii { index: 1 }),
+                "{bad:?}: {e}"
+            );
+            assert!(
+                e.to_string().starts_with("tokens[1].token: visible ASCII"),
+                "{e}"
+            );
+        }
+        assert!(matches!(
+            Tokens::parse(&entry("short")).unwrap_err(),
+            TokenListError::TooShort { index: 0 }
+        ));
+    }
+
+    #[test]
+    fn an_empty_list_is_refused() {
+        let e = Tokens::parse("tokens = []").unwrap_err();
+        assert!(matches!(e, TokenListError::Empty), "{e}");
+    }
+
+    #[test]
+    fn a_tokens_file_must_be_a_bounded_regular_file() {
+        let e = Tokens::load(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            e.to_string() == "/dev/zero is a character device, not a regular file",
+            "{e}"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("tokens.toml");
+        std::fs::write(&big, vec![b'#'; MAX_TOKENS_BYTES as usize + 1]).unwrap();
+        let e = Tokens::load(&big).unwrap_err();
+        assert!(e.to_string().contains("over the limit"), "{e}");
+    }
 }

@@ -49,6 +49,9 @@ use std::time::Duration;
 
 use laparo_proto::v1;
 use thiserror::Error;
+
+use crate::engine::scene::read_bounded;
+use crate::recording::recorder::with_causes;
 use tokio::net::TcpListener;
 use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
@@ -60,6 +63,10 @@ use decode_status::ContractStatus;
 pub use liveness::StationTimeout;
 pub use registry::Registry;
 pub use station::PoseLimits;
+
+/// Largest TLS certificate or key file read, bytes: 1 MiB (a certificate chain is a
+/// few kB).
+pub const MAX_PEM_BYTES: u64 = 1 << 20;
 
 /// Largest message a client may send, bytes: poses and requests are well under a
 /// kilobyte; 64 KiB leaves room and refuses floods. A larger message is answered
@@ -251,12 +258,20 @@ pub async fn serve(
         .http2_keepalive_timeout(Some(limits.keepalive_timeout));
     if let Some(tls) = &config.tls {
         let read = |p: &PathBuf| {
-            std::fs::read(p).map_err(|e| ServeError::Tls(format!("{}: {e}", p.display())))
+            read_bounded(p, None, MAX_PEM_BYTES)
+                .map_err(|e| ServeError::Tls(format!("{} {e}", p.display())))
         };
         let identity = Identity::from_pem(read(&tls.cert)?, read(&tls.key)?);
         builder = builder
             .tls_config(ServerTlsConfig::new().identity(identity))
-            .map_err(|e| ServeError::Tls(e.to_string()))?;
+            .map_err(|e| {
+                ServeError::Tls(format!(
+                    "{} with {} and {} (are they a certificate and its own key, in PEM?)",
+                    with_causes(&e),
+                    tls.cert.display(),
+                    tls.key.display()
+                ))
+            })?;
     }
     tracing::info!(
         %addr,
