@@ -81,7 +81,11 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     const mech = desc.summary?.mechanicsRateHz ?? 60;
     stats.ticksPerFrame = Math.max(1, Math.round(mech / frameRateHz));
     page.dataset.scene = desc.summary?.name ?? "";
-    drivers.clear();
+    // A reconnect offers the scene again: an instrument it still has keeps its
+    // Driver, so it resumes where the trainee left it, not at its start pose.
+    for (const name of drivers.keys()) {
+      if (!desc.instruments.some((d) => d.name === name)) drivers.delete(name);
+    }
     const positions = desc.restSurface?.positions ?? [];
     let cx = 0, cy = 0, cz = 0;
     const n = positions.length / 3;
@@ -95,7 +99,7 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       radius = Math.max(radius, Math.hypot(positions[i] - cx, positions[i + 1] - cy, positions[i + 2] - cz));
     }
     for (const d of desc.instruments) {
-      if (options.instruments.includes(d.name)) {
+      if (options.instruments.includes(d.name) && !drivers.has(d.name)) {
         drivers.set(d.name, new Driver(d, { x: cx, y: cy, z: cz }, STANDOFF_FRACTION_OF_RADIUS * radius));
       }
     }

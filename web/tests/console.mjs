@@ -316,6 +316,15 @@ try {
   const drawnPast = (n) => pad.waitForFunction((n) => Number(document.querySelector("#live")?.dataset.drawn) > n, n, { timeout: T });
   await drawnPast(await drawnNow());
   const geometries = await pad.$eval("#live", (e) => Number(e.dataset.geometries));
+  // Moved off its start pose first: the reconnect must keep where it was left.
+  const leftTip = () => pad.$eval('#gauges [data-instrument="left"]', (e) => e.dataset.tip);
+  await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip, null, { timeout: T });
+  const startTip = await leftTip();
+  await pad.evaluate(() => (window.__pad.axes[0] = 0.4));
+  await pad.waitForFunction((b) => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip !== b, startTip, { timeout: T });
+  await pad.evaluate(() => (window.__pad.axes[0] = 0));
+  await pad.waitForTimeout(300);
+  const leftAt = await leftTip();
   const sends = "**/laparo.v1.Station/SendPoses";
   await pad.route(sends, (r) =>
     r.fulfill({ status: 200, headers: { "content-type": "application/grpc-web+proto", "grpc-status": "14", "grpc-message": "dropped" } }),
@@ -327,6 +336,13 @@ try {
   const again = await pad.$eval("#live", (e) => Number(e.dataset.geometries));
   check(geometries > 0 && again === geometries, `${geometries} geometries on the GPU before the reconnect, ${again} after`);
   console.log(`ok a reconnect built the scene again and freed the last one: ${again} geometries on the GPU`);
+  step = "reconnect: the pose is kept";
+  await pad
+    .waitForFunction((at) => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip === at, leftAt, { timeout: 5000 })
+    .catch(async () => {
+      throw new Error(`${step}: the tip was at ${leftAt} before the reconnect (${startTip} at the start), at ${await leftTip()} after`);
+    });
+  console.log(`ok a reconnect kept the instrument where it was left: tip at ${leftAt}`);
   await pad.close();
 
   // A live view left frees its WebGL context at once: a browser keeps about 16,
