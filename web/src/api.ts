@@ -34,6 +34,8 @@ export interface Failure {
   /** The server refuses the name the page was opened by (its guard against DNS
    * rebinding, on a server without tokens): no token helps, another address does. */
   host?: boolean;
+  /** An instructor evicted the station: it must not join again by itself. */
+  evicted?: boolean;
 }
 
 /** The header by which the server marks its refusal of the page's host
@@ -61,11 +63,14 @@ export function failure(e: unknown): Failure {
       // it is free again when that station leaves, or, if its page went away,
       // once the server sees it gone; worth waiting for.
       return { code: err.code, text: `${text}; waiting for its release`, retry: true, auth: false };
+    case Code.Aborted:
+      // An instructor evicted the station (the server's only use of the code;
+      // its text says by whom and why): joining again would undo the eviction.
+      return { code: err.code, text, retry: false, auth: false, evicted: true };
     case Code.Unavailable:
     case Code.Unknown:
     case Code.Internal:
     case Code.DeadlineExceeded:
-    case Code.Aborted:
       return { code: err.code, text: `connection lost: ${text}`, retry: true, auth: false };
     default:
       return { code: err.code, text, retry: false, auth: false };

@@ -3,7 +3,8 @@
 // sampled at the station's pose rate and sent in batches, see sampler.ts). The
 // stream is read into "newest" slots and drawn once per animation frame, so a
 // fast stream never queues draws; a lost connection is said and retried with
-// backoff; a wrong token, a closed or unknown session end the view with a notice.
+// backoff; a wrong token, a closed or unknown session, an eviction end the view
+// with a notice.
 import { create } from "@bufbuild/protobuf";
 import { Code, failure, observe, station } from "./api";
 import { Driver, M_PER_WHEEL, RAD_PER_PIXEL, stick } from "./drive";
@@ -183,7 +184,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       }
     } catch (e) {
       const f = failure(e);
-      if (f.code !== undefined && !signal.aborted) notice(`poses not sent: ${f.text}`);
+      // A call answered after the view ended (closed, evicted) would hide why it did.
+      if (f.code !== undefined && !signal.aborted && !closed) notice(`poses not sent: ${f.text}`);
     } finally {
       sending = false;
     }
@@ -385,6 +387,11 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
         const reason = /session closed: (.*)/.exec(f.text);
         if (reason) {
           closed = `session ${options.sessionId} closed: ${reason[1]}`;
+          break;
+        }
+        if (f.evicted) {
+          // Ends the view: rejoining by itself would undo the eviction.
+          closed = `${f.text}; reload the page to join again`;
           break;
         }
         if (f.code === Code.NotFound) {

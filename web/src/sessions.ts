@@ -1,6 +1,6 @@
 // The sessions page: the scenes, the live sessions (scene, stations, who holds
 // which instrument, tick rate, missed deadlines, recording), creating and closing
-// sessions, joining as a station or observing, and the recordings with a replay
+// sessions, evicting a station, joining as a station or observing, and the recordings with a replay
 // link. Refreshed every two seconds; a failure is said and retried.
 import { failure, recordings, scenes, sessions } from "./api";
 import type { SessionInfo } from "./gen/laparo/v1/session_pb";
@@ -97,13 +97,30 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
           }
         });
         links.append(" ", close);
+        // Each station, with a button to evict it (an instructor's call): its
+        // page is told by whom and does not join again by itself.
+        const stations = el("td", {});
+        for (const st of s.stations) {
+          const evict = el("button", { type: "button", class: "evict", "data-station": String(st.stationId) }, "evict");
+          evict.addEventListener("click", async () => {
+            try {
+              await sessions.evictStation({ sessionId: s.sessionId, stationId: st.stationId, reason: "evicted from the console" }, { signal });
+              await refresh();
+            } catch (e) {
+              notice(`evicting station ${st.stationId} of ${s.sessionId}: ${failure(e).text}`);
+            }
+          });
+          if (stations.childElementCount > 0) stations.append("; ");
+          stations.append(`${st.stationId} ${st.clientName} (${st.instruments.join(", ") || "watching"}) `, evict);
+        }
+        if (s.stations.length === 0) stations.append("none");
         const recording = s.recordingError ? `error: ${s.recordingError}` : s.recordingFile ? `recording ${s.recordingFile}` : "not recorded";
         return el(
           "tr",
           { "data-session": s.sessionId },
           el("td", {}, s.sessionId),
           el("td", {}, s.scene),
-          el("td", {}, s.stations.map((st) => `${st.stationId} ${st.clientName} (${st.instruments.join(", ") || "watching"})`).join("; ") || "none"),
+          stations,
           el("td", {}, instruments.join("; ")),
           el("td", {}, `${s.tick} (${s.simTimeS.toFixed(1)} s)`),
           el("td", {}, `${s.tickTimeP50Ms.toFixed(2)} / ${s.tickTimeP99Ms.toFixed(2)} ms`),

@@ -343,6 +343,19 @@ try {
       throw new Error(`${step}: the tip was at ${leftAt} before the reconnect (${startTip} at the start), at ${await leftTip()} after`);
     });
   console.log(`ok a reconnect kept the instrument where it was left: tip at ${leftAt}`);
+
+  // An evicted station is told by whom and stays out: its page does not join
+  // again by itself.
+  step = "evict";
+  await driver.goto(`${url}#/`);
+  await driver.click(`#sessions tr[data-session="${padSession}"] button.evict`);
+  await liveState(pad, "ended");
+  const evicted = await pad.$eval("#connection", (e) => e.textContent);
+  check(/evicted by `instructor`/.test(evicted), `the evicted page says "${evicted}"`);
+  await pad.waitForTimeout(2000);
+  const after = await pad.$eval("#connection", (e) => e.dataset.state);
+  check(after === "ended", `the evicted page went ${after}`);
+  console.log(`ok an evicted page stays out: ${evicted}`);
   await pad.close();
 
   // A live view left frees its WebGL context at once: a browser keeps about 16,
