@@ -6,7 +6,7 @@
 // backoff; a wrong token, a closed or unknown session, an eviction end the view
 // with a notice.
 import { create } from "@bufbuild/protobuf";
-import { Code, failure, observe, station } from "./api";
+import { Code, failure, observe, sessions, station } from "./api";
 import { Driver, M_PER_WHEEL, RAD_PER_PIXEL, stick } from "./drive";
 import { PoseSampler } from "./sampler";
 import { DevicePoseSchema } from "./gen/laparo/v1/station_pb";
@@ -138,6 +138,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   }
 
   let closed: string | null = null;
+  /** When the session the view opened was created (SessionInfo.created_at). */
+  let opened: string | null = null;
 
   const sampler = new PoseSampler();
   const sendStats = { calls: 0, poses: 0, lastBatch: 0, spacingMs: NaN };
@@ -315,6 +317,15 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     for (let attempt = 0; !signal.aborted; attempt++) {
       setConnection(attempt === 0 ? "connecting" : "reconnecting");
       try {
+        // Ids start again at s1 when the server restarts: a session of the id
+        // found on a reconnect may be another one. Its creation time tells.
+        const info = await sessions.getSession({ sessionId: options.sessionId }, { signal });
+        const created = `${info.createdAt?.seconds ?? ""}.${info.createdAt?.nanos ?? ""}`;
+        if (opened === null) opened = created;
+        else if (created !== opened) {
+          closed = `session ${options.sessionId} ended (the server restarted; ${options.sessionId} is now another session)`;
+          break;
+        }
         if (driving) {
           const stream = station.attach(
             { sessionId: options.sessionId, role: Role.TRAINEE, instruments: options.instruments, clientName: "browser console" },
