@@ -131,7 +131,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   }
 
   function onEvent(e: Event): void {
-    const item = el("li", {}, `${e.simTimeS.toFixed(2)} s ${EventKind[e.kind] ?? e.kind} ${e.instrument ?? ""} ${e.detail}`);
+    const station = e.stationId !== undefined ? `station ${e.stationId}` : "";
+    const item = el("li", {}, [`${e.simTimeS.toFixed(2)} s`, EventKind[e.kind] ?? String(e.kind), station, e.instrument ?? "", e.detail].filter(Boolean).join(" "));
     events.prepend(item);
     while (events.childElementCount > 30) events.lastElementChild?.remove();
     if (e.kind === EventKind.SESSION_CLOSING) closed = `session ${options.sessionId} closed: ${e.detail}`;
@@ -405,6 +406,12 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
           closed = `${f.text}; reload the page to join again`;
           break;
         }
+        const unknown = /has no instrument `(.*)`/.exec(f.text);
+        if (f.code === Code.NotFound && unknown) {
+          // The address asks for an instrument the scene lacks: the session is there.
+          closed = `instrument ${unknown[1]} is not in the scene of session ${options.sessionId} (${f.text})`;
+          break;
+        }
         if (f.code === Code.NotFound) {
           // Gone while away (closed, idle, or the server restarted without it).
           closed = `session ${options.sessionId} is closed or does not exist (${f.text})`;
@@ -412,7 +419,9 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
         }
         if (!f.retry) {
           setConnection("error", f.text);
-          notice(f.auth ? `${f.text} — enter a token above` : f.text);
+          // Only another token helps an unknown one; a token refused a right
+          // (to claim this instrument, say) is valid.
+          notice(f.code === Code.Unauthenticated ? `${f.text} — enter a token above` : f.text);
           page.dataset.error = f.text;
           return;
         }

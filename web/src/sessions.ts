@@ -2,7 +2,7 @@
 // which instrument, tick rate, missed deadlines, recording), creating and closing
 // sessions, evicting a station, joining as a station or observing, and the recordings with a replay
 // link. Refreshed every two seconds; a failure is said and retried.
-import { failure, recordings, scenes, sessions } from "./api";
+import { Code, failure, recordings, scenes, sessions } from "./api";
 import type { SessionInfo } from "./gen/laparo/v1/session_pb";
 import type { RecordingInfo } from "./gen/laparo/v1/recording_pb";
 import { RecordingState } from "./gen/laparo/v1/recording_pb";
@@ -165,7 +165,7 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
         const f = failure(e);
         if (f.auth || f.host) {
           setConnection("error", f.text);
-          notice(f.auth ? `${f.text} — enter a token above` : f.text);
+          notice(f.code === Code.Unauthenticated ? `${f.text} — enter a token above` : f.text);
           document.body.dataset.error = f.text;
           return;
         }
