@@ -1,13 +1,14 @@
 // The sessions page: the scenes, the live sessions (scene, stations, who holds
 // which instrument, tick rate, missed deadlines, recording), creating and closing
-// sessions, evicting a station, joining as a station or observing, and the recordings with a replay
-// link. Refreshed every two seconds; a failure is said and retried.
+// sessions, evicting a station, joining as a station or observing, and the
+// recordings with a replay link. Refreshed every two seconds; a failure is said
+// and retried.
 import { Code, failure, recordings, scenes, sessions } from "./api";
 import type { SessionInfo } from "./gen/laparo/v1/session_pb";
 import type { RecordingInfo } from "./gen/laparo/v1/recording_pb";
 import { RecordingState } from "./gen/laparo/v1/recording_pb";
 import type { SceneSummary } from "./gen/laparo/v1/scene_pb";
-import { backoff, el, notice, setConnection, sleep } from "./status";
+import { backoff, clearNotice, el, notice, setConnection, sleep } from "./status";
 
 const REFRESH_MS = 2000;
 
@@ -49,23 +50,27 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
     renderRecordings(rs.recordings);
   }
 
+  /** The scenes as last rendered: the same again is not rebuilt (the select
+   * would lose its focus, and its list close under the user's pointer). */
+  let scenesShown = "";
+
   function renderScenes(list: SceneSummary[], problems: string[]): void {
+    const rows = list.map((s) => [
+      s.name,
+      s.description,
+      String(s.vertexCount),
+      String(s.tetrahedronCount),
+      String(s.surfaceTriangleCount),
+      `${s.mechanicsRateHz} Hz`,
+      s.integrator,
+      s.instruments.join(", "),
+    ]);
+    const shown = JSON.stringify([rows, problems]);
+    if (shown === scenesShown) return;
+    scenesShown = shown;
     sceneTable.replaceChildren(
       el("tr", {}, ...["scene", "description", "vertices", "tetrahedra", "surface triangles", "rate", "integrator", "instruments"].map((h) => el("th", {}, h))),
-      ...list.map((s) =>
-        el(
-          "tr",
-          { "data-scene": s.name },
-          el("td", {}, s.name),
-          el("td", {}, s.description),
-          el("td", {}, String(s.vertexCount)),
-          el("td", {}, String(s.tetrahedronCount)),
-          el("td", {}, String(s.surfaceTriangleCount)),
-          el("td", {}, `${s.mechanicsRateHz} Hz`),
-          el("td", {}, s.integrator),
-          el("td", {}, s.instruments.join(", ")),
-        ),
-      ),
+      ...rows.map((cells) => el("tr", { "data-scene": cells[0] }, ...cells.map((c) => el("td", {}, c)))),
       ...problems.map((p) => el("tr", {}, el("td", { colspan: "8" }, `unavailable: ${p}`))),
     );
     const current = sceneSelect.value;
@@ -73,92 +78,118 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
     if (list.some((s) => s.name === current)) sceneSelect.value = current;
   }
 
+  const sessionHeader = el("tr", {}, ...["session", "scene", "stations", "instruments", "tick", "tick p50/p99", "missed", "observers", "recording", ""].map((h) => el("th", {}, h)));
+
   function renderSessions(list: SessionInfo[]): void {
-    sessionTable.replaceChildren(
-      el("tr", {}, ...["session", "scene", "stations", "instruments", "tick", "tick p50/p99", "missed", "observers", "recording", ""].map((h) => el("th", {}, h))),
-      ...list.map((s) => {
+    syncRows(
+      sessionTable,
+      sessionHeader,
+      list.map((s) => {
         const instruments = s.instruments.map((i) => `${i.instrument}: ${i.stationId !== undefined ? `station ${i.stationId}` : "free"}`);
-        const links = el(
-          "td",
-          {},
-          el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}`, class: "observe" }, "observe"),
-          ...s.instruments.map((i) => el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${encodeURIComponent(i.instrument)}`, class: "drive", style: "margin-left:0.5rem" }, `drive ${i.instrument}`)),
-          s.instruments.length > 1
-            ? el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${s.instruments.map((i) => encodeURIComponent(i.instrument)).join(",")}`, style: "margin-left:0.5rem" }, "drive all")
-            : "",
-        );
-        const close = el("button", { type: "button", class: "close" }, "close");
-        close.addEventListener("click", async () => {
-          try {
-            await sessions.closeSession({ sessionId: s.sessionId, reason: "closed from the console" }, { signal });
-            await refresh();
-          } catch (e) {
-            notice(`closing ${s.sessionId}: ${failure(e).text}`);
-          }
-        });
-        links.append(" ", close);
-        // Each station, with a button to evict it (an instructor's call): its
-        // page is told by whom and does not join again by itself.
-        const stations = el("td", {});
-        for (const st of s.stations) {
-          const evict = el("button", { type: "button", class: "evict", "data-station": String(st.stationId) }, "evict");
-          evict.addEventListener("click", async () => {
-            try {
-              await sessions.evictStation({ sessionId: s.sessionId, stationId: st.stationId, reason: "evicted from the console" }, { signal });
-              await refresh();
-            } catch (e) {
-              notice(`evicting station ${st.stationId} of ${s.sessionId}: ${failure(e).text}`);
-            }
-          });
-          if (stations.childElementCount > 0) stations.append("; ");
-          stations.append(`${st.stationId} ${st.clientName} (${st.instruments.join(", ") || "watching"}) `, evict);
-        }
-        if (s.stations.length === 0) stations.append("none");
         const recording = s.recordingError ? `error: ${s.recordingError}` : s.recordingFile ? `recording ${s.recordingFile}` : "not recorded";
-        return el(
-          "tr",
-          { "data-session": s.sessionId },
-          el("td", {}, s.sessionId),
-          el("td", {}, s.scene),
-          stations,
-          el("td", {}, instruments.join("; ")),
-          el("td", {}, `${s.tick} (${s.simTimeS.toFixed(1)} s)`),
-          el("td", {}, `${s.tickTimeP50Ms.toFixed(2)} / ${s.tickTimeP99Ms.toFixed(2)} ms`),
-          el("td", {}, String(s.missedDeadlines)),
-          el("td", {}, String(s.observerCount)),
-          el("td", {}, recording),
-          links,
-        );
+        return {
+          key: s.sessionId,
+          // The stations' cell and the links are made of these.
+          shape: JSON.stringify([s.scene, s.stations.map((st) => [String(st.stationId), st.clientName, st.instruments]), s.instruments.map((i) => i.instrument)]),
+          texts: [
+            s.sessionId,
+            s.scene,
+            null,
+            instruments.join("; "),
+            `${s.tick} (${s.simTimeS.toFixed(1)} s)`,
+            `${s.tickTimeP50Ms.toFixed(2)} / ${s.tickTimeP99Ms.toFixed(2)} ms`,
+            String(s.missedDeadlines),
+            String(s.observerCount),
+            recording,
+            null,
+          ],
+          build: () => sessionRow(s),
+        };
       }),
     );
   }
 
+  /** A session's row: its texts are written by syncRows. */
+  function sessionRow(s: SessionInfo): HTMLTableRowElement {
+    const links = el(
+      "td",
+      {},
+      el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}`, class: "observe" }, "observe"),
+      ...s.instruments.map((i) => el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${encodeURIComponent(i.instrument)}`, class: "drive", style: "margin-left:0.5rem" }, `drive ${i.instrument}`)),
+      s.instruments.length > 1
+        ? el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${s.instruments.map((i) => encodeURIComponent(i.instrument)).join(",")}`, style: "margin-left:0.5rem" }, "drive all")
+        : "",
+    );
+    const close = el("button", { type: "button", class: "close" }, "close");
+    close.addEventListener("click", async () => {
+      try {
+        await sessions.closeSession({ sessionId: s.sessionId, reason: "closed from the console" }, { signal });
+        await refresh();
+      } catch (e) {
+        notice(`closing ${s.sessionId}: ${failure(e).text}`);
+      }
+    });
+    links.append(" ", close);
+    // Each station, with a button to evict it (an instructor's call): its
+    // page is told by whom and does not join again by itself.
+    const stations = el("td", {});
+    for (const st of s.stations) {
+      const evict = el("button", { type: "button", class: "evict", "data-station": String(st.stationId) }, "evict");
+      evict.addEventListener("click", async () => {
+        try {
+          await sessions.evictStation({ sessionId: s.sessionId, stationId: st.stationId, reason: "evicted from the console" }, { signal });
+          await refresh();
+        } catch (e) {
+          notice(`evicting station ${st.stationId} of ${s.sessionId}: ${failure(e).text}`);
+        }
+      });
+      if (stations.childElementCount > 0) stations.append("; ");
+      stations.append(`${st.stationId} ${st.clientName} (${st.instruments.join(", ") || "watching"}) `, evict);
+    }
+    if (s.stations.length === 0) stations.append("none");
+    return el("tr", { "data-session": s.sessionId }, el("td"), el("td"), stations, el("td"), el("td"), el("td"), el("td"), el("td"), el("td"), links);
+  }
+
+  const recordingHeader = el("tr", {}, ...["file", "session", "scene", "duration", "size", "state", ""].map((h) => el("th", {}, h)));
+
   function renderRecordings(list: RecordingInfo[]): void {
-    recordingTable.replaceChildren(
-      el("tr", {}, ...["file", "session", "scene", "duration", "size", "state", ""].map((h) => el("th", {}, h))),
-      ...list.map((r) =>
-        el(
-          "tr",
-          { "data-recording": r.file },
-          el("td", {}, r.file),
-          el("td", {}, r.sessionId),
-          el("td", {}, r.scene),
-          el("td", {}, `${r.durationS.toFixed(1)} s`),
-          el("td", {}, `${(Number(r.sizeBytes) / 1024).toFixed(0)} KiB`),
-          el("td", {}, RecordingState[r.state]?.replace("RECORDING_STATE_", "").toLowerCase() ?? ""),
-          el("td", {}, el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay")),
-        ),
-      ),
+    syncRows(
+      recordingTable,
+      recordingHeader,
+      list.map((r) => ({
+        key: r.file,
+        shape: r.file,
+        texts: [
+          r.file,
+          r.sessionId,
+          r.scene,
+          `${r.durationS.toFixed(1)} s`,
+          `${(Number(r.sizeBytes) / 1024).toFixed(0)} KiB`,
+          RecordingState[r.state]?.replace("RECORDING_STATE_", "").toLowerCase() ?? "",
+          null,
+        ],
+        build: () =>
+          el(
+            "tr",
+            { "data-recording": r.file },
+            ...Array.from({ length: 6 }, () => el("td")),
+            el("td", {}, el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay")),
+          ),
+      })),
     );
   }
 
   void (async () => {
+    /** The refresh's own notice (the connection lost), the only one it clears:
+     * an action's error stays until the user reads it. */
+    let lost: string | null = null;
     for (let attempt = 0; !signal.aborted; ) {
       try {
         await refresh();
         attempt = 0;
         setConnection("live");
-        notice(null);
+        if (lost !== null) clearNotice(lost);
+        lost = null;
         await sleep(REFRESH_MS, signal);
       } catch (e) {
         if (signal.aborted) return;
@@ -171,9 +202,53 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
         }
         const wait = backoff(attempt++);
         setConnection("reconnecting", f.text);
-        notice(`${f.text}; trying again in ${(wait / 1000).toFixed(1)} s`);
+        lost = `${f.text}; trying again in ${(wait / 1000).toFixed(1)} s`;
+        notice(lost);
         await sleep(wait, signal);
       }
     }
   })();
+}
+
+/** A row of a table kept across refreshes by syncRows. */
+interface Row {
+  /** Tells the row among the others (a session's id, a recording's file). */
+  key: string;
+  /** What the row's links and buttons are made of: the row is built again when it changes. */
+  shape: string;
+  /** The text of each cell, written where it changed; null for a cell of links or buttons. */
+  texts: (string | null)[];
+  build: () => HTMLTableRowElement;
+}
+
+/** The shape each row was built for. */
+const shapes = new WeakMap<HTMLTableRowElement, string>();
+
+/** Shows `rows` in `table` under `header` without rebuilding what did not
+ * change: a row of the same key and shape stays in the page, only its changed
+ * texts rewritten, so a link or button in it keeps the keyboard focus across
+ * the refreshes; a row is built anew only when its shape changed, and moved
+ * only when the order did. */
+function syncRows(table: HTMLTableElement, header: HTMLTableRowElement, rows: Row[]): void {
+  const old = new Map<string, HTMLTableRowElement>();
+  for (const tr of table.querySelectorAll<HTMLTableRowElement>(":scope > tr[data-key]")) old.set(tr.dataset.key!, tr);
+  if (table.firstElementChild !== header) table.prepend(header);
+  let previous: Element = header;
+  for (const r of rows) {
+    let tr = old.get(r.key);
+    old.delete(r.key);
+    if (!tr || shapes.get(tr) !== r.shape) {
+      tr?.remove();
+      tr = r.build();
+      tr.dataset.key = r.key;
+      shapes.set(tr, r.shape);
+    }
+    r.texts.forEach((text, i) => {
+      const cell = tr.cells[i];
+      if (text !== null && cell && cell.textContent !== text) cell.textContent = text;
+    });
+    if (previous.nextElementSibling !== tr) previous.after(tr);
+    previous = tr;
+  }
+  for (const tr of old.values()) tr.remove();
 }

@@ -14,6 +14,11 @@ export function notice(text: string | null): void {
   el.textContent = text ?? "";
 }
 
+/** Clears the notice if it still says `text`: not another's said since. */
+export function clearNotice(text: string): void {
+  if (document.getElementById("notice")!.textContent === text) notice(null);
+}
+
 /** Backoff before reconnecting: 0.5 s doubling to 10 s. */
 export function backoff(attempt: number): number {
   return Math.min(10_000, 500 * 2 ** Math.min(attempt, 5));

@@ -290,6 +290,24 @@ try {
   await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip, null, { timeout: T });
   console.log(`ok a claimed instrument was waited for ("${waiting}") and taken once let go`);
 
+  // The sessions page, refreshed every 2 s, keeps an action's error (here a
+  // session of a scene there is none of) and the keyboard's focus.
+  step = "sessions page: notice and focus kept";
+  await driver.$eval("#new-scene", (e) => {
+    e.append(new Option("no-such-scene", "no-such-scene"));
+    e.value = "no-such-scene";
+  });
+  await driver.click("#create");
+  await driver.waitForFunction(() => /creating a session/.test(document.querySelector("#notice")?.textContent), null, { timeout: T });
+  const link = `#sessions tr[data-session="${padSession}"] a.observe`;
+  await driver.focus(link);
+  await driver.waitForTimeout(2500);
+  const kept = await driver.$eval("#notice", (e) => (e.hidden ? "" : e.textContent));
+  check(/creating a session/.test(kept), `after a refresh the notice says "${kept}"`);
+  const focused = await driver.$eval(link, (e) => e === document.activeElement);
+  check(focused, `after a refresh the focus is on ${await driver.evaluate(() => document.activeElement?.outerHTML.slice(0, 80))}`);
+  console.log(`ok a refresh kept the notice "${kept}" and the focus on the observe link`);
+
   // A hidden tab draws no frames, so it samples no poses: with the frame loop
   // stopped, the station stays live past the server's station timeout (5 s) on
   // its heartbeat.
