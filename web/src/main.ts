@@ -22,7 +22,16 @@ function route(): void {
   const app = document.getElementById("app")!;
   const [path, query = ""] = location.hash.replace(/^#/, "").split("?");
   const params = new URLSearchParams(query);
-  const parts = path.split("/").filter(Boolean).map(decodeURIComponent);
+  let parts: string[];
+  try {
+    parts = path.split("/").filter(Boolean).map(decodeURIComponent);
+  } catch {
+    // A malformed escape (`#/live/%`): said, over the sessions list, rather than
+    // thrown with the left view still on the screen.
+    sessionsPage(app, signal);
+    notice(`the address ${location.hash} is not a valid console address`);
+    return;
+  }
   if (parts[0] === "live" && parts[1]) {
     const drive = params.get("drive");
     live(app, { sessionId: parts[1], instruments: drive ? drive.split(",").filter(Boolean) : [] }, signal);

@@ -308,6 +308,13 @@ try {
   check(focused, `after a refresh the focus is on ${await driver.evaluate(() => document.activeElement?.outerHTML.slice(0, 80))}`);
   console.log(`ok a refresh kept the notice "${kept}" and the focus on the observe link`);
 
+  // A malformed address is said, over the sessions list.
+  step = "malformed address";
+  await driver.goto(`${url}#/live/%`);
+  await driver.waitForFunction(() => /not a valid console address/.test(document.querySelector("#notice")?.textContent), null, { timeout: T });
+  await driver.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+  console.log(`ok a malformed address is said: ${await driver.$eval("#notice", (e) => e.textContent)}`);
+
   // A hidden tab draws no frames, so it samples no poses: with the frame loop
   // stopped, the station stays live past the server's station timeout (5 s) on
   // its heartbeat.
