@@ -1,14 +1,15 @@
 // The replay page: a recording through Recordings.Replay — play, pause, speed,
 // seek, recorded or re-simulated — drawn as the live view draws, with |force|
 // over time beside it. Pausing ends the stream; playing again (or seeking, or
-// changing the speed or mode) opens a new one from the time reached.
+// changing the speed or mode) opens a new one from the time reached. A lost
+// connection is retried with the live view's backoff, from the time reached.
 import { failure, recordings } from "./api";
 import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
 import { ReplayMode } from "./gen/laparo/v1/recording_pb";
 import { ForcePlot } from "./view/plot";
 import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
-import { el, notice, setConnection } from "./status";
+import { backoff, el, notice, setConnection, sleep } from "./status";
 
 /** Interval between writes of the page's text (time, gauges, plot), ms. */
 const TEXT_MS = 100;
@@ -50,62 +51,100 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
   const states = new Map<string, InstrumentState>();
   let haveScene = false;
 
-  void recordings
-    .listRecordings({}, { signal })
-    .then((r) => {
-      duration = r.recordings.find((x) => x.file === file)?.durationS ?? 0;
-      seek.max = String(duration);
-      plot.setDuration(duration);
-    })
-    .catch((e) => notice(`listing recordings: ${failure(e).text}`));
+  function setDuration(d: number): void {
+    duration = d;
+    seek.max = String(duration);
+    plot.setDuration(duration);
+  }
+
+  /** Asks the server for the recording's duration: as each stream starts and
+   * ends, since the page may have opened while the server was away, and a
+   * recording still being made grows. */
+  function refreshDuration(): void {
+    void recordings
+      .listRecordings({}, { signal })
+      .then((r) => {
+        const d = r.recordings.find((x) => x.file === file)?.durationS;
+        if (d !== undefined) setDuration(Math.max(d, at));
+      })
+      .catch((e) => {
+        if (!signal.aborted) notice(`listing recordings: ${failure(e).text}`);
+      });
+  }
+
+  // One listener for the page's signal, whatever the number of streams started.
+  signal.addEventListener("abort", () => stream?.abort());
 
   function start(from: number): void {
     stream?.abort();
     const mine = new AbortController();
     stream = mine;
-    signal.addEventListener("abort", () => mine.abort());
     page.dataset.state = "playing";
     // The time of the stream's first frame: where a seek landed.
     page.dataset.startedAt = "";
     setConnection("connecting");
     void (async () => {
-      try {
-        const messages = recordings.replay(
-          {
-            file,
-            speed: Number(speed.value),
-            startOffsetS: from,
-            mode: resim.checked ? ReplayMode.RESIMULATE : ReplayMode.RECORDED,
-          },
-          { signal: mine.signal },
-        );
-        for await (const m of messages) {
-          const k = m.kind;
-          if (k.case === "scene") {
-            if (!haveScene) view.setScene(k.value);
-            gauges.set(k.value.instruments.map((i) => i.name));
-            haveScene = true;
-            setConnection("live");
-          } else if (k.case === "surfaceFrame") {
-            surface = k.value;
-            at = k.value.simTimeS;
-            if (!page.dataset.startedAt) page.dataset.startedAt = at.toFixed(4);
-          } else if (k.case === "instrumentState") {
-            states.set(k.value.instrument, k.value);
-            plot.add(k.value.instrument, k.value.simTimeS, k.value.force?.magnitudeN ?? 0);
+      // A lost connection (the server restarting, say) is retried as the live
+      // view does, from the time reached.
+      for (let attempt = 0; ; attempt++) {
+        try {
+          const messages = recordings.replay(
+            {
+              file,
+              speed: Number(speed.value),
+              startOffsetS: from,
+              mode: resim.checked ? ReplayMode.RESIMULATE : ReplayMode.RECORDED,
+            },
+            { signal: mine.signal },
+          );
+          for await (const m of messages) {
+            const k = m.kind;
+            if (k.case === "scene") {
+              if (!haveScene) view.setScene(k.value);
+              gauges.set(k.value.instruments.map((i) => i.name));
+              haveScene = true;
+              attempt = 0;
+              // Playing again: what went wrong before is over.
+              delete page.dataset.error;
+              page.dataset.state = "playing";
+              notice(null);
+              setConnection("live");
+              refreshDuration();
+            } else if (k.case === "surfaceFrame") {
+              surface = k.value;
+              at = k.value.simTimeS;
+              // Past a duration listed while the recording was shorter.
+              if (at > duration) setDuration(at);
+              if (!page.dataset.startedAt) page.dataset.startedAt = at.toFixed(4);
+            } else if (k.case === "instrumentState") {
+              states.set(k.value.instrument, k.value);
+              plot.add(k.value.instrument, k.value.simTimeS, k.value.force?.magnitudeN ?? 0);
+            }
           }
+          if (mine === stream) {
+            page.dataset.state = "ended";
+            setConnection("ended", "the recording played to its end");
+            refreshDuration();
+          }
+          return;
+        } catch (e) {
+          if (mine.signal.aborted) return;
+          const f = failure(e);
+          page.dataset.error = f.text;
+          if (!f.retry) {
+            page.dataset.state = "error";
+            setConnection("error", f.text);
+            notice(`replay: ${f.text}`);
+            return;
+          }
+          // From the time reached, if this stream reached any.
+          if (page.dataset.startedAt) from = at;
+          const wait = backoff(attempt);
+          setConnection("reconnecting", `${f.text}; again in ${(wait / 1000).toFixed(1)} s`);
+          notice(`replay: ${f.text}; trying again in ${(wait / 1000).toFixed(1)} s`);
+          await sleep(wait, mine.signal);
+          if (mine.signal.aborted) return;
         }
-        if (mine === stream) {
-          page.dataset.state = "ended";
-          setConnection("ended", "the recording played to its end");
-        }
-      } catch (e) {
-        if (mine.signal.aborted) return;
-        const f = failure(e);
-        page.dataset.state = "error";
-        page.dataset.error = f.text;
-        setConnection("error", f.text);
-        notice(`replay: ${f.text}`);
       }
     })();
   }
@@ -154,5 +193,6 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     plot.draw(at);
   }
   requestAnimationFrame(frame);
+  refreshDuration();
   start(0);
 }

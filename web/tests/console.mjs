@@ -407,14 +407,29 @@ try {
   await lobby.goto(url);
   await useToken(lobby, token);
   await lobby.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
+  // A replay playing while the server is away plays on once it is back.
+  const rewatch = await context.newPage();
+  rewatch.on("pageerror", (e) => problems.push(`rewatch: uncaught ${e.message}`));
+  await rewatch.goto(url);
+  await useToken(rewatch, token);
+  await rewatch.goto(`${url}#/replay/${encodeURIComponent(file)}`);
+  await liveState(rewatch, "live");
+  await rewatch.selectOption("#speed", "0.25");
+  await liveState(rewatch, "live");
   await ask("stop", "stopped");
   await liveState(lobby, "reconnecting");
   const lost = await lobby.$eval("#notice", (e) => e.textContent);
   check(/connection lost/.test(lost), `the page says "${lost}"`);
+  await rewatch.waitForFunction(() => document.querySelector("#replay")?.dataset.error, null, { timeout: T });
   await ask("start", "started");
   await liveState(lobby, "live");
   await lobby.waitForSelector('#scenes tr[data-scene="default"]', { timeout: T });
   console.log(`ok server restarted: the page said "${lost}" and came back`);
+  step = "restart: the replay plays on";
+  await liveState(rewatch, "live");
+  const replayed = await rewatch.$eval("#replay", (e) => ({ error: e.dataset.error, notice: document.querySelector("#notice").hidden }));
+  check(replayed.error === undefined && replayed.notice, `the replay plays again, still saying "${replayed.error}"`);
+  console.log(`ok the replay played on after the restart from ${await rewatch.$eval("#replay", (e) => e.dataset.time)} s`);
 
   // Over TLS: the page loads over https and lists the scenes.
   if (tlsUrl) {
