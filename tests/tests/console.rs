@@ -11,7 +11,11 @@
 //! a gamepad driving an instrument and its vibration growing with the force; an
 //! instrument another station holds waited for and taken once let go; a live
 //! view left releasing its WebGL context; a page drawing no frames (a hidden
-//! tab) keeping its instrument past the station timeout;
+//! tab) keeping its instrument past the station timeout; a reconnect keeping
+//! the instrument where it was left; an evicted page staying out; the sessions
+//! page keeping an action's error and the keyboard focus across refreshes; a
+//! malformed address said over the sessions list; a replay playing on through
+//! the server's restart;
 //! the console over TLS (a self-signed certificate made here), an instrument
 //! driven there over HTTP/2. Then, on a server
 //! without tokens, a page opened by a name that is not the server's told that its
