@@ -25,7 +25,7 @@ pub mod input;
 mod mechanics;
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock, Weak};
 use std::thread::JoinHandle;
@@ -143,7 +143,7 @@ impl Session {
         let created_at = SystemTime::now();
         let recorder = match &config.recordings {
             Some(dir) => {
-                let path = dir.join(recording_file_name(&id, &scene.name, created_at));
+                let path = free_recording_path(dir, &id, &scene.name, created_at);
                 let header = SessionHeader {
                     session_id: id.clone(),
                     scene_name: scene.name.clone(),
@@ -491,6 +491,29 @@ pub fn recording_file_name(id: &str, scene: &str, created_at: SystemTime) -> Str
         .map_or(0, |d| d.as_secs());
     format!("{id}-{scene}-{unix}.mcap")
 }
+
+/// Where a session's recording goes: `dir` joined with [`recording_file_name`], or,
+/// when a file of that name is there already, the same name with `-2`, `-3`, …
+/// before `.mcap`. Session ids start again at `s1` when a server restarts, so a
+/// session created within a second of the last one's `s1` would otherwise take its
+/// name, and the recorder (which creates its file new, never over another) would
+/// fail. Two servers sharing a directory can still race for one name within the
+/// same instant; the later then reports that it cannot create the file, and its
+/// session goes on unrecorded.
+pub fn free_recording_path(dir: &Path, id: &str, scene: &str, created_at: SystemTime) -> PathBuf {
+    let name = recording_file_name(id, scene, created_at);
+    let first = dir.join(&name);
+    let stem = name.trim_end_matches(".mcap");
+    let taken = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    std::iter::once(first.clone())
+        .chain((2..=MAX_NAME_SUFFIX).map(|k| dir.join(format!("{stem}-{k}.mcap"))))
+        .find(|p| !taken(p))
+        .unwrap_or(first)
+}
+
+/// Most `-k` suffixes tried for a free recording name; past it the first name is
+/// used and its creation fails as it says.
+const MAX_NAME_SUFFIX: u32 = 1000;
 
 /// Publishes `event` to the session's streams and offers it to the recorder; what
 /// the recorder reports (falling behind, failing) is published too, stamped like the

@@ -119,3 +119,55 @@ fn a_session_whose_recording_fails_goes_on_without_it() {
     session.close("test over");
     session.join();
 }
+
+#[test]
+fn a_session_whose_recording_name_is_taken_records_beside_it() {
+    // As after a restart within the second: a file of the name `s1` would take.
+    let dir = temp();
+    let config = SessionConfig {
+        idle_timeout: None,
+        recordings: Some(dir.path().to_path_buf()),
+    };
+    let first = Session::start("s1".into(), Scene::default_scene(), &config).unwrap();
+    let taken = first.info().recording_file.unwrap();
+    let second = Session::start("s1".into(), Scene::default_scene(), &config).unwrap();
+    let file = second.info().recording_file.unwrap();
+    wait_ticks(&second, 3);
+    for s in [&first, &second] {
+        s.close("test over");
+        s.join();
+    }
+    // Within the same second the name is the first's with `-2`; a second later,
+    // a name of its own.
+    assert!(
+        file != taken && file.starts_with("s1-default-"),
+        "{taken} then {file}"
+    );
+    if file.len() > taken.len() {
+        assert_eq!(file, taken.replace(".mcap", "-2.mcap"));
+    }
+    assert!(
+        second.info().recording_error.is_none(),
+        "{:?}",
+        second.info()
+    );
+    // Both recordings read back whole, each its own session's.
+    for f in [&taken, &file] {
+        let rec = Recording::open(&dir.path().join(f)).unwrap();
+        assert!(rec.is_complete(), "{f}");
+        assert_eq!(rec.meta().session_id, "s1");
+    }
+}
+
+#[test]
+fn a_free_recording_name_counts_up_past_the_taken_ones() {
+    let dir = temp();
+    let at = std::time::UNIX_EPOCH + Duration::from_secs(1_800_000_000);
+    let name = |p: PathBuf| p.file_name().unwrap().to_string_lossy().into_owned();
+    let free = || free_recording_path(dir.path(), "s1", "liver 5k", at);
+    assert_eq!(name(free()), "s1-liver_5k-1800000000.mcap");
+    std::fs::write(free(), b"").unwrap();
+    assert_eq!(name(free()), "s1-liver_5k-1800000000-2.mcap");
+    std::fs::create_dir(free()).unwrap();
+    assert_eq!(name(free()), "s1-liver_5k-1800000000-3.mcap");
+}
