@@ -144,6 +144,9 @@ pub struct LoadSummary {
     pub errors: BTreeMap<String, u64>,
     /// Stations that failed, with why.
     pub failures: Vec<String>,
+    /// Why the session's own figures (ticks, recorder) are missing: it ended
+    /// before the run asked for them.
+    pub session_gone: Option<String>,
     /// Pose-to-state latency over all posing stations.
     pub latency: LatencySummary,
     /// The session at the end (`GetSession`): missed mechanics deadlines.
@@ -260,12 +263,22 @@ pub async fn run_load(
         ..LoadSummary::default()
     };
     add_up(&mut summary, results);
-    let info = sessions
+    let info = match sessions
         .get_session(unary(GetSessionRequest {
             session_id: session_id.clone(),
         }))
-        .await?
-        .into_inner();
+        .await
+    {
+        Ok(info) => info.into_inner(),
+        // The session ended under the run (closed, the server stopping): what
+        // the stations counted and why they stopped is the run's result; the
+        // session's own figures are gone with it.
+        Err(status) if !summary.failures.is_empty() => {
+            summary.session_gone = Some(status.message().to_string());
+            return Ok(summary);
+        }
+        Err(status) => return Err(status.into()),
+    };
     summary.missed_deadlines = info.missed_deadlines;
     summary.tick_time_p50_ms = info.tick_time_p50_ms;
     summary.tick_time_p99_ms = info.tick_time_p99_ms;

@@ -61,3 +61,49 @@ async fn a_load_run_poses_from_one_station_per_free_instrument_and_closes_its_se
     assert_eq!(gone.code(), Code::NotFound);
     server.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_session_closed_under_a_load_run_is_said_by_its_stations() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
+    let session = sessions
+        .create_session(v1::CreateSessionRequest::default())
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let config = LoadConfig {
+        connect: ConnectConfig::new(format!("http://{}", server.addr)),
+        session: Some(session.clone()),
+        stations: 2,
+        pose_rate_hz: 100.0,
+        duration: Duration::from_secs(20),
+        surface_frame_rate_hz: None,
+        scene: None,
+        record: Some(false),
+    };
+    let run = tokio::spawn(run_load(config, |_| {}));
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    sessions
+        .close_session(v1::CloseSessionRequest {
+            session_id: session,
+            reason: "end of exercise".into(),
+        })
+        .await
+        .unwrap();
+    // The run ends saying why its stations stopped, not with the session it can
+    // no longer find.
+    let summary = run.await.unwrap().unwrap();
+    assert_eq!(summary.failures.len(), 2, "{:?}", summary.failures);
+    assert!(
+        summary
+            .failures
+            .iter()
+            .all(|f| f.contains("end of exercise")),
+        "{:?}",
+        summary.failures
+    );
+    let gone = summary.session_gone.as_deref().unwrap_or_default();
+    assert!(gone.contains("no session"), "{gone}");
+    server.shutdown().await.unwrap();
+}

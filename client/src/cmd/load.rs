@@ -100,6 +100,9 @@ fn print_summary(summary: &LoadSummary) {
     for failure in &summary.failures {
         say!("failed: {failure}");
     }
+    if let Some(why) = &summary.session_gone {
+        say!("the session's tick and recorder figures are missing: {why}");
+    }
     say!();
     say!("{}", LoadSummary::markdown_header());
     say!("{}", summary.markdown_row());
