@@ -319,17 +319,28 @@ fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
 /// Checks that `path`, written by `option`, is named as a `.{ext}` file (so that a
 /// slip of the command line cannot write VTK XML over a scene, a mesh or a script).
 fn output_name(option: &str, path: &Path, ext: &str) -> Result<(), String> {
-    if path
+    if !path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case(ext))
     {
-        Ok(())
-    } else {
-        Err(format!(
+        return Err(format!(
             "{option} {}: the output is a .{ext} file, so its name must end in .{ext}",
             path.display()
-        ))
+        ));
     }
+    // Said before the run, not after it has run for nothing.
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(format!(
+            "{option} {}: there is no directory {} to write it in",
+            path.display(),
+            dir.display()
+        ));
+    }
+    Ok(())
 }
 
 /// Whether `a` and `b` are one existing file (on Unix the same device and inode, so a
@@ -512,7 +523,7 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.sim_seconds / summary.wall_seconds.max(1e-12),
         );
         println!(
-            "mean CG iterations per tick {:.1}; ticks at the iteration cap {}; largest displacement {:.3} mm",
+            "mean CG iterations per tick {:.1}; ticks at the iteration cap {}; largest displacement at the end {:.3} mm",
             summary.mean_cg_iterations,
             summary.unconverged,
             summary.max_displacement * 1e3

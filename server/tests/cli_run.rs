@@ -259,6 +259,13 @@ fn a_bad_series_period_or_folder_fails_with_a_message() {
         ]))
         .contains("/no/such/dir/s")
     );
+    // A single export into a folder that is not there is refused before the run
+    // steps, not after it has run for nothing.
+    let said = fail(server().args(["run", "--seconds", "0.5", "--export", "/no/such/dir/x.vtu"]));
+    assert!(
+        said.contains("there is no directory /no/such/dir to write it in"),
+        "{said}"
+    );
 }
 
 /// A single-tetrahedron Gmsh mesh, and a scene of it naming its mesh file `mesh`.
