@@ -86,13 +86,19 @@ pub fn read_record(source: &Source, framed: &Framed) -> Result<Record<'static>, 
         .map_err(|e| format!("a damaged record at byte {}: {e}", framed.at))
 }
 
-/// The one record `bytes` holds (a record an index points to), parsed.
-pub fn parse_one(bytes: &[u8]) -> Result<Record<'static>, String> {
-    match frame(bytes, 0)? {
-        Some((op, body, next)) if next == bytes.len() => mcap::parse_record(op, body)
+/// The one record `bytes` holds (a record an index points to, at byte `at` of the
+/// file: errors name that offset), parsed.
+pub fn parse_one(bytes: &[u8], at: u64) -> Result<Record<'static>, String> {
+    match frame(bytes, 0) {
+        Ok(Some((op, body, next))) if next == bytes.len() => mcap::parse_record(op, body)
             .map(Record::into_owned)
-            .map_err(|e| format!("a damaged record: {e}")),
-        _ => Err("an index points at bytes that are not one record".into()),
+            .map_err(|e| format!("a damaged record at byte {at}: {e}")),
+        Ok(_) => Err(format!(
+            "an index points at bytes that are not one record (at byte {at})"
+        )),
+        Err(_) => Err(format!(
+            "the record an index points at (byte {at}) states a length past the bytes indexed"
+        )),
     }
 }
 

@@ -94,7 +94,7 @@ impl Recording {
         let record = source
             .read_at(index.offset, index.length, MAX_RECORD_BYTES)
             .map_err(|e| corrupt(format!("its metadata index: {e}")))
-            .and_then(|b| parse_one(&b).map_err(corrupt))?;
+            .and_then(|b| parse_one(&b, index.offset).map_err(corrupt))?;
         let Record::Metadata(metadata) = record else {
             return Err(corrupt(
                 "its metadata index points at another record".into(),

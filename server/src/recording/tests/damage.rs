@@ -304,3 +304,28 @@ fn a_recovery_writes_only_a_regular_file_and_leaves_others_alone() {
         .collect();
     assert_eq!(names, ["fixed.mcap.part"]);
 }
+
+#[test]
+fn a_damaged_metadata_record_is_named_by_its_offset_in_the_file() {
+    let dir = temp();
+    let good = dir.path().join("good.mcap");
+    record_script(&good, 5);
+    let index = Recording::open(&good)
+        .unwrap()
+        .mcap_summary()
+        .metadata_indexes
+        .iter()
+        .find(|m| m.name == METADATA_NAME)
+        .unwrap()
+        .clone();
+    let mut bytes = std::fs::read(&good).unwrap();
+    let at = index.offset as usize;
+    // The record's length, one byte longer than the index says it is.
+    let length = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap());
+    bytes[at + 1..at + 9].copy_from_slice(&(length + 1).to_le_bytes());
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, &bytes).unwrap();
+    let err = Recording::open(&bad).unwrap_err().to_string();
+    assert!(err.contains(&format!("byte {at}")), "{err}");
+    assert!(!err.contains("byte 0"), "{err}");
+}
