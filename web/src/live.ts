@@ -224,6 +224,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     window.addEventListener(
       "keydown",
       (e) => {
+        // Keys typed into a field (the token, say) are the field's, not the instrument's.
+        if (e.target instanceof HTMLElement && (e.target.isContentEditable || e.target.closest("input, select, textarea"))) return;
         const d = target(e.shiftKey);
         if (!d) return;
         if (e.key === "q" || e.key === "Q") d.roll -= 0.1;

@@ -110,6 +110,22 @@ try {
   const moved = await driver.$eval("#live", (e) => Number(e.dataset.surfaceChangeMm));
   console.log(`ok surface moved ${moved.toFixed(2)} mm, force ${force.toFixed(3)} N`);
 
+  // Keys typed into the token field are the field's: they neither roll nor move
+  // the instrument; the same key on the page rolls it.
+  step = "typing in a field";
+  const rollOf = () => driver.$eval("#hud", (e) => /left roll (-?\d+)°/.exec(e.textContent)?.[1]);
+  const tipBefore = await driver.$eval('#gauges [data-instrument="left"]', (e) => e.dataset.tip);
+  await driver.locator("#token").pressSequentially("qqqe");
+  await driver.waitForTimeout(300);
+  const typed = { roll: await rollOf(), tip: await driver.$eval('#gauges [data-instrument="left"]', (e) => e.dataset.tip) };
+  check(typed.roll === "0" && typed.tip === tipBefore, `typing "qqqe" in the token field rolled left to ${typed.roll}°, tip ${tipBefore} → ${typed.tip}`);
+  await driver.fill("#token", token);
+  await driver.locator("#token").blur();
+  await driver.keyboard.press("q");
+  await driver.waitForFunction(() => /left roll -6°/.test(document.querySelector("#hud")?.textContent), null, { timeout: T });
+  await driver.keyboard.press("e");
+  console.log(`ok typing in the token field left the instrument alone (roll ${typed.roll}°, tip ${typed.tip})`);
+
   // The held vertices arrive and are drawn: as many points as the state's held
   // count, cyan on the screen.
   step = "held vertices";
