@@ -161,7 +161,14 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
   };
   speed.addEventListener("change", restart);
   resim.addEventListener("change", restart);
+  /** The user holds the seek bar: the frame loop leaves its value alone until
+   * they let go. Not its focus, which stays after a click and would stop the
+   * bar following the playback. */
+  let seeking = false;
+  seek.addEventListener("pointerdown", () => (seeking = true));
+  for (const end of ["pointerup", "pointercancel"]) window.addEventListener(end, () => (seeking = false), { signal });
   seek.addEventListener("change", () => {
+    seeking = false;
     at = Number(seek.value);
     plot.clearAfter(at);
     start(at);
@@ -186,7 +193,7 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     if (now - shownAt < TEXT_MS) return;
     shownAt = now;
     gauges.show((name) => view.heldDrawn(name));
-    if (document.activeElement !== seek) seek.value = String(at);
+    if (!seeking) seek.value = String(at);
     time.textContent = `${at.toFixed(2)} / ${duration.toFixed(2)} s`;
     page.dataset.time = at.toFixed(3);
     page.dataset.drawn = String(view.drawn);

@@ -218,6 +218,19 @@ try {
   const landed = await driver.$eval("#replay", (e) => Number(e.dataset.startedAt));
   check(Math.abs(landed - target) <= 1 / 30, `sought ${target} s, landed at ${landed} s`);
   console.log(`ok replay sought ${target} s, landed at ${landed} s`);
+  // Clicked, the seek bar keeps the focus and goes on following the playback.
+  step = "replay: seek bar follows after a click";
+  await driver.click("#seek");
+  const clicked = await driver.$eval("#seek", (e) => Number(e.value));
+  await driver.waitForFunction((c) => Number(document.querySelector("#replay")?.dataset.time) > c + 0.3, clicked, { timeout: T });
+  await driver.waitForTimeout(200);
+  const follows = await driver.evaluate(() => ({
+    seek: Number(document.querySelector("#seek").value),
+    time: Number(document.querySelector("#replay").dataset.time),
+    focused: document.activeElement?.id,
+  }));
+  check(Math.abs(follows.seek - follows.time) < 0.1, `clicked at ${clicked} s, the bar at ${follows.seek} s while playing at ${follows.time} s`);
+  console.log(`ok the seek bar clicked at ${clicked} s follows the playback: ${follows.seek} s at ${follows.time} s (focus on #${follows.focused})`);
   step = "replay: to the end";
   await driver.selectOption("#speed", "10");
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "ended", null, { timeout: 60_000 });
