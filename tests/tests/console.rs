@@ -160,6 +160,7 @@ async fn the_console_works_in_a_real_browser() {
         TOKEN.to_string(),
         out_dir.display().to_string(),
         format!("https://localhost:{}/", tls.addr.port()),
+        recordings.path().display().to_string(),
     ];
     // The script asks for the server to be stopped (a file `stop` in OUT_DIR;
     // answered with `stopped`) and started again on its port (`start`, answered

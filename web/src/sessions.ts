@@ -158,7 +158,9 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
       recordingHeader,
       list.map((r) => ({
         key: r.file,
-        shape: r.file,
+        // An unfinished file gets no replay link (Replay refuses it until it is
+        // recovered); in progress, it has one (instructors may replay it).
+        shape: `${r.file} ${r.state === RecordingState.UNFINISHED}`,
         texts: [
           r.file,
           r.sessionId,
@@ -173,7 +175,13 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
             "tr",
             { "data-recording": r.file },
             ...Array.from({ length: 6 }, () => el("td")),
-            el("td", {}, el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay")),
+            el(
+              "td",
+              {},
+              r.state === RecordingState.UNFINISHED
+                ? el("span", { class: "unfinished" }, "unfinished: recover with `laparo recordings recover`")
+                : el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay"),
+            ),
           ),
       })),
     );

@@ -1,15 +1,15 @@
 // The console's browser tests (run by tests/tests/console.rs against a real
 // laparo-server with tokens): each step asserts one property of issue 12's
 // "Must hold", reading the page's state from the DOM (data- attributes, text).
-// Usage: node console.mjs URL INSTRUCTOR_TOKEN OUT_DIR [TLS_URL]
+// Usage: node console.mjs URL INSTRUCTOR_TOKEN OUT_DIR [TLS_URL [RECORDINGS_DIR]]
 // The server at URL is stopped and started again on request: the script writes
 // OUT_DIR/stop and waits for OUT_DIR/stopped, then OUT_DIR/start and waits for
 // OUT_DIR/started (tests/tests/console.rs answers).
-import { existsSync, writeFileSync } from "node:fs";
+import { copyFileSync, existsSync, statSync, truncateSync, writeFileSync } from "node:fs";
 import { launch, reportFailure, watch } from "./browser.mjs";
 import { decodePng } from "./png.mjs";
 
-const [url, token, out, tlsUrl] = process.argv.slice(2);
+const [url, token, out, tlsUrl, recordingsDir] = process.argv.slice(2);
 const problems = [];
 const T = 30_000;
 let step = "start";
@@ -236,6 +236,21 @@ try {
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "ended", null, { timeout: 60_000 });
   await driver.screenshot({ path: `${out}/replay.png` });
   console.log(`ok replay of ${file} played to its end at ${await driver.$eval("#replay", (e) => e.dataset.time)} s`);
+
+  // A recording cut short (a copy without its end, as a stopped server leaves
+  // one) is listed unfinished, with how to recover it instead of a replay link.
+  if (recordingsDir) {
+    step = "unfinished recording";
+    const cut = `cut-${file}`;
+    copyFileSync(`${recordingsDir}/${file}`, `${recordingsDir}/${cut}`);
+    truncateSync(`${recordingsDir}/${cut}`, Math.floor(statSync(`${recordingsDir}/${file}`).size * 0.6));
+    await driver.goto(`${url}#/`);
+    const cutRow = await driver.waitForSelector(`#recordings tr[data-recording="${cut}"]`, { timeout: T });
+    const said = await cutRow.evaluate((e) => ({ text: e.lastElementChild.textContent, links: e.querySelectorAll("a").length }));
+    check(said.links === 0 && /unfinished: recover with `laparo recordings recover`/.test(said.text), `${cut} offers ${said.links} links, "${said.text}"`);
+    check(await driver.$(`#recordings tr[data-recording="${file}"] a.replay`), `${file} lost its replay link`);
+    console.log(`ok an unfinished recording says "${said.text}"`);
+  }
 
   // A wrong token is refused on the page.
   step = "wrong token";
