@@ -15,7 +15,7 @@ import type { Event } from "./gen/laparo/v1/event_pb";
 import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
 import type { SceneDescription } from "./gen/laparo/v1/scene_pb";
 import { Role } from "./gen/laparo/v1/session_pb";
-import { backoff, el, notice, setConnection, sleep } from "./status";
+import { backoff, clearNotice, el, notice, setConnection, sleep } from "./status";
 import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
 import { FrameClock } from "./view/frameclock";
@@ -165,9 +165,18 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   }, HEARTBEAT_MS);
   signal.addEventListener("abort", () => clearInterval(beat));
 
+  /** What sendPoses last said went wrong: cleared once a call succeeds again. */
+  let posesNotice: string | null = null;
+  /** Failed SendPoses calls in a row, and when the next may be made (ms on the
+   * page's clock): after a failure, not before its backoff, rather than at
+   * every frame while the network is down. Poses sampled meanwhile wait in the
+   * sampler (the oldest dropped past its bound). */
+  let posesFailed = 0;
+  let posesRetryAt = -Infinity;
+
   /** Sends the waiting poses, a batch per call, one call at a time. */
   async function sendPoses(): Promise<void> {
-    if (!handle || sending || sampler.pending.length === 0) return;
+    if (!handle || sending || sampler.pending.length === 0 || performance.now() < posesRetryAt) return;
     sending = true;
     try {
       while (sampler.pending.length > 0 && handle && !signal.aborted) {
@@ -178,6 +187,9 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
           return create(DevicePoseSchema, { instrument: p.instrument, pose: { tip: p.tip, axis: p.axis }, deviceTimeS: p.t / 1000, sequence });
         });
         await station.sendPoses({ handle, poses }, { signal });
+        posesFailed = 0;
+        if (posesNotice !== null) clearNotice(posesNotice);
+        posesNotice = null;
         sendStats.calls++;
         lastCallAt = performance.now();
         sendStats.poses += poses.length;
@@ -187,8 +199,12 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       }
     } catch (e) {
       const f = failure(e);
+      posesRetryAt = performance.now() + backoff(posesFailed++);
       // A call answered after the view ended (closed, evicted) would hide why it did.
-      if (f.code !== undefined && !signal.aborted && !closed) notice(`poses not sent: ${f.text}`);
+      if (f.code !== undefined && !signal.aborted && !closed) {
+        posesNotice = `poses not sent: ${f.text}`;
+        notice(posesNotice);
+      }
     } finally {
       sending = false;
     }
@@ -346,6 +362,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
                 if (k.value.scene) onScene(k.value.scene, k.value.surfaceFrameRateHz);
                 // Poses sampled for a station that is gone are not sent to the new one.
                 sampler.pending.length = 0;
+                posesFailed = 0;
+                posesRetryAt = -Infinity;
                 active = true;
                 attempt = 0;
                 notice(null);

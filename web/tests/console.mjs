@@ -395,11 +395,16 @@ try {
   await pad.waitForTimeout(300);
   const leftAt = await leftTip();
   const sends = "**/laparo.v1.Station/SendPoses";
-  await pad.route(sends, (r) =>
-    r.fulfill({ status: 200, headers: { "content-type": "application/grpc-web+proto", "grpc-status": "14", "grpc-message": "dropped" } }),
-  );
+  const dropped = { status: 200, headers: { "content-type": "application/grpc-web+proto", "grpc-status": "14", "grpc-message": "dropped" } };
+  let refused = 0;
+  await pad.route(sends, (r) => {
+    refused++;
+    return r.fulfill(dropped);
+  });
   await liveState(pad, "reconnecting");
   await pad.unroute(sends);
+  // Failed calls are made again after a backoff, not at every frame.
+  check(refused < 30, `${refused} SendPoses calls while they failed`);
   await liveState(pad, "live");
   await drawnPast(await drawnNow());
   const again = await pad.$eval("#live", (e) => Number(e.dataset.geometries));
@@ -411,7 +416,16 @@ try {
     .catch(async () => {
       throw new Error(`${step}: the tip was at ${leftAt} before the reconnect (${startTip} at the start), at ${await leftTip()} after`);
     });
-  console.log(`ok a reconnect kept the instrument where it was left: tip at ${leftAt}`);
+  console.log(`ok a reconnect kept the instrument where it was left: tip at ${leftAt} (${refused} calls refused meanwhile)`);
+
+  // Poses refused for a moment are said, and no longer once sent again.
+  step = "poses refused, then sent";
+  let failures = 2;
+  await pad.route(sends, (r) => (failures-- > 0 ? r.fulfill(dropped) : r.continue()));
+  await pad.waitForFunction(() => /poses not sent/.test(document.querySelector("#notice")?.textContent), null, { timeout: T });
+  await pad.waitForFunction(() => document.querySelector("#notice")?.hidden, null, { timeout: 10_000 });
+  await pad.unroute(sends);
+  console.log("ok poses refused for a moment were said, and no longer once sent again");
 
   // An evicted station is told by whom and stays out: its page does not join
   // again by itself.
