@@ -9,7 +9,8 @@
 //
 // with z0 the rest direction and (u, v) a basis perpendicular to it.
 // Mouse drag pivots, the wheel inserts, Q/E roll; a gamepad's sticks pivot both
-// instruments, its triggers insert and its shoulder buttons roll.
+// instruments, its triggers insert (pulling back with the shoulder button of
+// their side held) and its shoulder buttons alone roll.
 import type { InstrumentDescription } from "./gen/laparo/v1/scene_pb";
 
 export interface Vec { x: number; y: number; z: number }

@@ -259,11 +259,17 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     const RATE = 0.02;
     l.pivot(-stick(pad.axes[0] ?? 0) * RATE, -stick(pad.axes[1] ?? 0) * RATE);
     if (list[1]) r.pivot(-stick(pad.axes[2] ?? 0) * RATE, -stick(pad.axes[3] ?? 0) * RATE);
+    // The standard mapping: the left stick pivots the first instrument, the right
+    // stick the second; a trigger inserts its side's instrument (LT the first, RT
+    // the second); its shoulder button held with it pulls it back instead, and
+    // held alone rolls it (LB the first, RB the second), so pulling back never rolls.
     const b = (i: number) => pad.buttons[i]?.value ?? 0;
-    l.insert((b(6) - (pad.buttons[4]?.pressed && pad.buttons[6]?.pressed ? 2 * b(6) : 0)) * 0.0005);
-    r.insert(b(7) * 0.0005 * (list[1] ? 1 : 0));
-    if (pad.buttons[4]?.pressed) l.roll -= 0.05;
-    if (pad.buttons[5]?.pressed) r.roll += 0.05;
+    const pressed = (i: number) => pad.buttons[i]?.pressed ?? false;
+    const INSERT = 0.0005;
+    l.insert(b(6) * INSERT * (pressed(4) ? -1 : 1));
+    if (list[1]) r.insert(b(7) * INSERT * (pressed(5) ? -1 : 1));
+    if (pressed(4) && !pressed(6)) l.roll -= 0.05;
+    if (pressed(5) && !pressed(7)) r.roll += 0.05;
     // Vibration growing with the force, where the pad has an actuator.
     let force = 0;
     for (const name of drivers.keys()) force = Math.max(force, forceN.get(name) ?? 0);

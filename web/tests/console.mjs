@@ -321,6 +321,15 @@ try {
   check(Math.abs(sent.spacing - 4) < 0.01, `poses ${sent.spacing} ms apart`);
   check(sent.poses > sent.calls, `${sent.poses} poses in ${sent.calls} calls`);
   console.log(`ok ${sent.poses} poses 4 ms apart in ${sent.calls} calls`);
+  // The left shoulder held with the left trigger pulls the instrument back, out
+  // of the tissue, without rolling it.
+  step = "gamepad: pulling back";
+  await pad.evaluate(() => (window.__pad.buttons[4] = window.__pad.buttons[6] = 1));
+  await pad.waitForFunction(() => Number(document.querySelector('#gauges [data-instrument="right"]')?.dataset.forceN) === 0, null, { timeout: T });
+  await pad.evaluate(() => (window.__pad.buttons[4] = window.__pad.buttons[6] = 0));
+  const pulledRoll = await pad.$eval("#hud", (e) => /right roll (-?\d+)°/.exec(e.textContent)?.[1]);
+  check(pulledRoll === "0", `pulling back rolled the instrument to ${pulledRoll}°`);
+  console.log("ok LB with LT pulled the instrument out of the tissue without rolling it");
 
   // An instrument another station holds is waited for, and taken once it is let
   // go: the pad's page asks for the left instrument, which the driver holds.
