@@ -1,6 +1,6 @@
 // The console's gRPC-web clients: the laparo.v1 contract over @connectrpc's
 // gRPC-web transport, to the server the page came from, with the bearer token.
-import { Code, ConnectError, createClient, type Interceptor } from "@connectrpc/connect";
+import { Code, ConnectError, createClient, type Interceptor, type Transport } from "@connectrpc/connect";
 import { createGrpcWebTransport } from "@connectrpc/connect-web";
 import { Observe, Recordings, Scenes, Sessions, Station } from "./gen/laparo/v1/services_pb";
 import { token } from "./token";
@@ -11,10 +11,23 @@ const bearer: Interceptor = (next) => async (req) => {
   return next(req);
 };
 
-const transport = createGrpcWebTransport({
+const grpcWeb = createGrpcWebTransport({
   baseUrl: location.origin,
   interceptors: [bearer],
 });
+
+/** Deadline of a unary call, ms. Over plain http a browser holds at most six
+ * connections per server, and each open stream (a live view, a replay) takes
+ * one: past five views a call waits for a connection, and would wait silently
+ * forever. With the deadline it fails and is said. Streams have none: they
+ * last as long as the view. */
+export const UNARY_TIMEOUT_MS = 10_000;
+
+const transport: Transport = {
+  unary: (method, signal, timeoutMs, header, input, contextValues) =>
+    grpcWeb.unary(method, signal, timeoutMs ?? UNARY_TIMEOUT_MS, header, input, contextValues),
+  stream: (method, signal, timeoutMs, header, input, contextValues) => grpcWeb.stream(method, signal, timeoutMs, header, input, contextValues),
+};
 
 export const scenes = createClient(Scenes, transport);
 export const sessions = createClient(Sessions, transport);
@@ -67,10 +80,12 @@ export function failure(e: unknown): Failure {
       // An instructor evicted the station (the server's only use of the code;
       // its text says by whom and why): joining again would undo the eviction.
       return { code: err.code, text, retry: false, auth: false, evicted: true };
+    case Code.DeadlineExceeded:
+      // A unary call past UNARY_TIMEOUT_MS (no connection free, say).
+      return { code: err.code, text: `no answer within ${UNARY_TIMEOUT_MS / 1000} s: ${text}`, retry: true, auth: false };
     case Code.Unavailable:
     case Code.Unknown:
     case Code.Internal:
-    case Code.DeadlineExceeded:
       return { code: err.code, text: `connection lost: ${text}`, retry: true, auth: false };
     default:
       return { code: err.code, text, retry: false, auth: false };
