@@ -3,7 +3,7 @@
 // over time beside it. Pausing ends the stream; playing again (or seeking, or
 // changing the speed or mode) opens a new one from the time reached. A lost
 // connection is retried with the live view's backoff, from the time reached.
-import { failure, recordings } from "./api";
+import { Code, failure, recordings } from "./api";
 import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
 import { ReplayMode } from "./gen/laparo/v1/recording_pb";
 import { ForcePlot } from "./view/plot";
@@ -13,6 +13,12 @@ import { backoff, el, notice, setConnection, sleep } from "./status";
 
 /** Interval between writes of the page's text (time, gauges, plot), ms. */
 const TEXT_MS = 100;
+
+/** Attempts at a replay the server refuses for its limit (RESOURCE_EXHAUSTED,
+ * `--max-replays`) before saying so: a seek or a change of speed aborts the
+ * stream and opens another, and the server frees the aborted one's slot only a
+ * moment later. */
+const SLOT_ATTEMPTS = 4;
 
 export function replay(root: HTMLElement, file: string, signal: AbortSignal): void {
   const viewport = el("div", { class: "viewport", id: "viewport" });
@@ -131,7 +137,8 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
           if (mine.signal.aborted) return;
           const f = failure(e);
           page.dataset.error = f.text;
-          if (!f.retry) {
+          const slot = f.code === Code.ResourceExhausted && attempt < SLOT_ATTEMPTS - 1;
+          if (!f.retry && !slot) {
             page.dataset.state = "error";
             setConnection("error", f.text);
             notice(`replay: ${f.text}`);
@@ -140,8 +147,9 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
           // From the time reached, if this stream reached any.
           if (page.dataset.startedAt) from = at;
           const wait = backoff(attempt);
-          setConnection("reconnecting", `${f.text}; again in ${(wait / 1000).toFixed(1)} s`);
-          notice(`replay: ${f.text}; trying again in ${(wait / 1000).toFixed(1)} s`);
+          const why = slot ? "waiting for a replay slot" : f.text;
+          setConnection("reconnecting", `${why}; again in ${(wait / 1000).toFixed(1)} s`);
+          notice(`replay: ${why}; trying again in ${(wait / 1000).toFixed(1)} s`);
           await sleep(wait, mine.signal);
           if (mine.signal.aborted) return;
         }
