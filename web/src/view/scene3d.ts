@@ -13,8 +13,15 @@ import { vertexNormals } from "./normals";
 /** Liver tissue at rest, and where displacement takes it (at DISPLACEMENT_FULL_M; lighter, still liver-red). */
 const LIVER = new THREE.Color(0x9c3d2c);
 const DISPLACED = new THREE.Color(0xe07a50);
-/** Displacement drawn in the full highlight colour, m: the sag under gravity plus a firm press. */
+/** Displacement drawn in the full highlight colour, m: the sag under gravity plus a firm press,
+ * for a liver of the default scene's size (REFERENCE_RADIUS_M); scaled with the scene's. */
 const DISPLACEMENT_FULL_M = 0.02;
+/** Bounding-sphere radius of the default scene's liver (0.19 m across), m. A scene is
+ * assumed to hold a liver of about that size in whatever unit it is written in (the
+ * `sofa-liver` scene keeps SOFA's, ~6.5 across): the cameras' near and far planes and
+ * the displacement colours scale with its radius. The readouts in mm (max
+ * displacement, surface change) assume metres. */
+const REFERENCE_RADIUS_M = 0.1;
 /** Held vertices: drawn as cyan points of this many pixels, over the surface. */
 const HELD = new THREE.Color(0x33e0ff);
 const HELD_POINT_PX = 7;
@@ -65,6 +72,8 @@ export class SceneView {
   private instruments = new Map<string, InstrumentView>();
   private triangles: Uint32Array = new Uint32Array();
   private center = new THREE.Vector3();
+  /** Displacement drawn in the full highlight colour, in the scene's unit. */
+  private displacementFull = DISPLACEMENT_FULL_M;
   private dirty = true;
   // Scratch vectors of setInstrument: nothing is allocated per frame.
   private readonly tip = new THREE.Vector3();
@@ -136,6 +145,14 @@ export class SceneView {
     const sphere = geometry.boundingSphere ?? new THREE.Sphere(new THREE.Vector3(), 0.1);
     this.center.copy(sphere.center);
     const r = Math.max(sphere.radius, 0.01);
+    // The default liver's 0.001 and 10 m, in proportion: a scene of another size
+    // (or unit) would fall beyond the far plane, or through the near one.
+    for (const camera of [this.orbit, this.scope]) {
+      camera.near = r / 100;
+      camera.far = r * 100;
+      camera.updateProjectionMatrix();
+    }
+    this.displacementFull = (DISPLACEMENT_FULL_M * r) / REFERENCE_RADIUS_M;
     this.orbit.position.set(this.center.x + 0.4 * r, this.center.y + 1.2 * r, this.center.z + 3.2 * r);
     this.controls.target.copy(this.center);
     this.controls.update();
@@ -199,7 +216,7 @@ export class SceneView {
       if (d > max) max = d;
       const cx = x - first[i], cy = y - first[i + 1], cz = z - first[i + 2];
       change = Math.max(change, cx * cx + cy * cy + cz * cz);
-      const t = Math.min(1, d / DISPLACEMENT_FULL_M);
+      const t = Math.min(1, d / this.displacementFull);
       c[i] = LIVER.r + (DISPLACED.r - LIVER.r) * t;
       c[i + 1] = LIVER.g + (DISPLACED.g - LIVER.g) * t;
       c[i + 2] = LIVER.b + (DISPLACED.b - LIVER.b) * t;
