@@ -246,10 +246,14 @@ function syncRows(table: HTMLTableElement, header: HTMLTableRowElement, rows: Ro
     let tr = old.get(r.key);
     old.delete(r.key);
     if (!tr || shapes.get(tr) !== r.shape) {
+      // A row rebuilt (its stations changed, say) gives the focus it held to
+      // the same control of the new row: the same link, or the same button.
+      const focused = tr?.contains(document.activeElement) ? controlKey(document.activeElement) : null;
       tr?.remove();
       tr = r.build();
       tr.dataset.key = r.key;
       shapes.set(tr, r.shape);
+      if (focused) [...tr.querySelectorAll<HTMLElement>("a, button")].find((e) => controlKey(e) === focused)?.focus();
     }
     r.texts.forEach((text, i) => {
       const cell = tr.cells[i];
@@ -259,4 +263,11 @@ function syncRows(table: HTMLTableElement, header: HTMLTableRowElement, rows: Ro
     previous = tr;
   }
   for (const tr of old.values()) tr.remove();
+}
+
+/** What tells a row's link or button from the others of the row: its class,
+ * its address, its station, its text. */
+function controlKey(e: Element | null): string {
+  if (!e) return "";
+  return [e.tagName, e.className, e.getAttribute("href") ?? "", (e as HTMLElement).dataset.station ?? "", e.textContent ?? ""].join("\u0000");
 }
