@@ -186,3 +186,76 @@ fn a_tip_withdrawn_after_a_slide_lets_the_tissue_go() {
         );
     }
 }
+
+#[test]
+fn a_deep_fast_pivot_of_both_instruments_lets_the_liver_go() {
+    // As a trainee can drive the console: both instruments in through their
+    // trocars to their full 30 cm (through the liver), swung 0.6 rad sideways and
+    // 0.3 rad up or down within one tick, six times, then withdrawn to 1 cm inside
+    // their trocars. The swings stretch the coarse mesh's triangles tens of
+    // centimetres; a vertex the tip had laid on its end was then carried beside the
+    // shaft, far off its surface, and kept there as if the shaft pressed it: the
+    // withdrawn instruments went on holding the liver 0.37 m out of its rest a second
+    // later (with other swings half a metre, with 150–330 N).
+    use nalgebra::{Rotation3, Vector3};
+    let mut sim = Scene::default_scene().build().unwrap();
+    sim.solve_static();
+    let sag = sim.state.x.clone();
+    let trocars: Vec<_> = sim.instruments.iter().map(|i| i.trocar).collect();
+    let place = |sim: &mut Simulation, depth: f64, yaw: f64, pitch: [f64; 2]| {
+        for (i, trocar) in trocars.iter().enumerate() {
+            let inward = -trocar.coords.normalize();
+            let turn = Rotation3::from_axis_angle(&Vector3::x_axis(), pitch[i])
+                * Rotation3::from_axis_angle(&Vector3::y_axis(), yaw);
+            let d = turn * inward;
+            let tip = trocar + d * depth;
+            sim.set_pose(i, Some(pose(tip.into(), (-d).into())));
+        }
+    };
+    let inserting = ticks(&sim, 1.0);
+    for k in 1..=inserting {
+        place(
+            &mut sim,
+            0.01 + 0.29 * k as f64 / inserting as f64,
+            0.0,
+            [0.0; 2],
+        );
+        sim.tick();
+    }
+    let mut yaw = 0.0;
+    for swing in 0..6 {
+        yaw = if swing % 2 == 0 { 0.6 } else { -0.6 };
+        for _ in 0..ticks(&sim, 0.3) {
+            place(&mut sim, 0.3, yaw, [0.3, -0.3]);
+            sim.tick();
+        }
+    }
+    let out = ticks(&sim, 0.5);
+    for k in 1..=out {
+        place(
+            &mut sim,
+            0.3 - 0.29 * k as f64 / out as f64,
+            yaw,
+            [0.3, -0.3],
+        );
+        sim.tick();
+    }
+    let mut last_held = 0.0;
+    for k in 1..=ticks(&sim, 1.0) {
+        place(&mut sim, 0.01, yaw, [0.3, -0.3]);
+        sim.tick();
+        if sim.instruments.iter().any(|i| !i.held.is_empty()) {
+            last_held = k as f64 * sim.dt;
+        }
+    }
+    let off = max_distance(&sim.state.x, &sag);
+    println!("last held {last_held} s after the withdrawal; {off:.2e} m off rest");
+    // The withdrawal drags tissue squeezed against the shaft out with it, and that
+    // slides back off the shaft at most half a radius a tick (`MAX_SLIDE`): 0.22 s
+    // here, longer than the 0.1 s a press takes to let go (the grid above).
+    assert!(
+        last_held <= 0.5,
+        "still held {last_held} s after the withdrawal"
+    );
+    assert!(off <= 1e-3, "the liver is {off} m off its rest");
+}

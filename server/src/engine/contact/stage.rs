@@ -41,7 +41,9 @@ use nalgebra::{Matrix3, Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
 use super::edges::stop_colliding_edges;
-use super::hold::{ADHESION, Hold, MAX_SLIDE, MIN_SLIDE, contact_normal, stays_held, tip_press};
+use super::hold::{
+    ADHESION, Hold, MAX_SLIDE, MIN_SLIDE, contact_normal, shaft_press, stays_held, tip_press,
+};
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
@@ -537,6 +539,7 @@ impl ContactStage {
                 radius,
                 ins_params,
                 || tip_press(surface, v, &pose.tip, radius, &state.x),
+                || shaft_press(surface, v, &pose, length, radius, &state.x),
             );
             let keep = match hold {
                 Hold::Stick => true,
