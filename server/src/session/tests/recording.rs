@@ -128,15 +128,18 @@ fn a_session_whose_recording_name_is_taken_records_beside_it() {
         idle_timeout: None,
         recordings: Some(dir.path().to_path_buf()),
     };
+    // The first server's session, its file written and closed as the server
+    // stopped; then the restarted server's `s1`.
     let first = Session::start("s1".into(), Scene::default_scene(), &config).unwrap();
     let taken = first.info().recording_file.unwrap();
+    wait_ticks(&first, 3);
+    first.close("server stopped");
+    first.join();
     let second = Session::start("s1".into(), Scene::default_scene(), &config).unwrap();
     let file = second.info().recording_file.unwrap();
     wait_ticks(&second, 3);
-    for s in [&first, &second] {
-        s.close("test over");
-        s.join();
-    }
+    second.close("test over");
+    second.join();
     // Within the same second the name is the first's with `-2`; a second later,
     // a name of its own.
     assert!(
