@@ -10,7 +10,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use laparo_proto::text::printable;
 use laparo_server::engine::integrate::IntegratorKind;
-use laparo_server::engine::scene::Scene;
+use laparo_server::engine::scene::{Scene, same_file};
 use laparo_server::engine::simulation::{Simulation, mesh_path};
 use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
@@ -341,24 +341,6 @@ fn output_name(option: &str, path: &Path, ext: &str) -> Result<(), String> {
         ));
     }
     Ok(())
-}
-
-/// Whether `a` and `b` are one existing file (on Unix the same device and inode, so a
-/// symbolic or hard link to it counts too).
-fn same_file(a: &Path, b: &Path) -> bool {
-    let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
-        return false;
-    };
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        x.dev() == y.dev() && x.ino() == y.ino()
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = (x, y);
-        std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok()
-    }
 }
 
 fn run(args: RunArgs) -> Result<(), String> {

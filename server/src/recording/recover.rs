@@ -34,6 +34,7 @@ use mcap::{Compression, MAGIC, McapError, WriteOptions};
 use super::METADATA_NAME;
 use super::records::{chunk_records, frame_at, read_record};
 use super::source::{Follow, Source};
+use crate::engine::scene::{file_kind, same_file};
 
 /// What a recovery kept and left out.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -120,7 +121,7 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         Ok(meta) if !meta.is_file() => {
             return Err(RecoverError::OutputNotRegular {
                 file: out_name,
-                kind: kind_of(&meta),
+                kind: file_kind(&meta),
             });
         }
         Ok(_) => same_file(input, output),
@@ -182,42 +183,6 @@ pub fn lost(recovery: &Recovery) -> String {
         what.push(format!("{} bytes after {why}", recovery.bytes_dropped));
     }
     what.join(", ")
-}
-
-/// Whether `a` and `b` name the same file (after following links).
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
-}
-
-/// What kind of file `meta` describes, for [`RecoverError::OutputNotRegular`].
-fn kind_of(meta: &std::fs::Metadata) -> &'static str {
-    let t = meta.file_type();
-    if t.is_symlink() {
-        return "symbolic link";
-    }
-    if t.is_dir() {
-        return "directory";
-    }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileTypeExt;
-        if t.is_fifo() {
-            return "FIFO (named pipe)";
-        }
-        if t.is_char_device() {
-            return "character device";
-        }
-        if t.is_block_device() {
-            return "block device";
-        }
-        if t.is_socket() {
-            return "socket";
-        }
-    }
-    "special file"
 }
 
 /// Recovers the recording held in `bytes` (named `file` in errors) onto `out`.

@@ -104,7 +104,7 @@ pub fn read_bounded(path: &Path, root: Option<&Path>, limit: u64) -> Result<Vec<
 fn check_regular(meta: &Metadata, limit: u64) -> Result<(), FileError> {
     if !meta.is_file() {
         return Err(FileError::NotRegular {
-            kind: kind_of(meta),
+            kind: file_kind(meta),
         });
     }
     if meta.len() > limit {
@@ -116,31 +116,52 @@ fn check_regular(meta: &Metadata, limit: u64) -> Result<(), FileError> {
     Ok(())
 }
 
-#[cfg(unix)]
-fn kind_of(meta: &Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
+/// What kind of file `meta` describes, for an error that refuses it: "directory",
+/// "symbolic link" (only from `symlink_metadata`), "FIFO (named pipe)", … A regular
+/// file gets "special file" too, so call it only for what is not one.
+pub fn file_kind(meta: &Metadata) -> &'static str {
     let t = meta.file_type();
-    if t.is_dir() {
-        "directory"
-    } else if t.is_fifo() {
-        "FIFO (named pipe)"
-    } else if t.is_char_device() {
-        "character device"
-    } else if t.is_block_device() {
-        "block device"
-    } else if t.is_socket() {
-        "socket"
-    } else {
-        "special file"
+    if t.is_symlink() {
+        return "symbolic link";
     }
+    if t.is_dir() {
+        return "directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "character device";
+        }
+        if t.is_block_device() {
+            return "block device";
+        }
+        if t.is_socket() {
+            return "socket";
+        }
+    }
+    "special file"
 }
 
-#[cfg(not(unix))]
-fn kind_of(meta: &Metadata) -> &'static str {
-    if meta.is_dir() {
-        "directory"
-    } else {
-        "special file"
+/// Whether `a` and `b` are one existing file: on Unix the same device and inode, so
+/// a symbolic or a hard link to it counts too (a canonical path would miss the hard
+/// link); elsewhere the same canonical path.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        x.dev() == y.dev() && x.ino() == y.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (x, y);
+        std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok()
     }
 }
 

@@ -15,7 +15,10 @@ pub mod limits;
 mod schema;
 
 pub use error::SceneError;
-pub use files::{FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, open_nonblocking, read_bounded};
+pub use files::{
+    FileError, MAX_MESH_BYTES, MAX_SCENE_BYTES, file_kind, open_nonblocking, read_bounded,
+    same_file,
+};
 pub use schema::{
     BoxSpec, FixedSpec, ForceModelSpec, InstrumentSpec, MAX_REFINE, MAX_REFINED_TETS, MaterialSpec,
     MechanicsSpec, MeshSpec, RecordingSpec, RegionSpec, Scene,

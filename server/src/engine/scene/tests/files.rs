@@ -191,3 +191,35 @@ fn a_missing_or_binary_scene_file_is_named_with_what_is_wrong() {
         "{e}"
     );
 }
+
+#[test]
+fn one_file_is_the_same_under_any_link_and_another_is_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.mcap");
+    let b = dir.path().join("b.mcap");
+    std::fs::write(&a, b"same bytes").unwrap();
+    std::fs::write(&b, b"same bytes").unwrap();
+    let hard = dir.path().join("hard.mcap");
+    std::fs::hard_link(&a, &hard).unwrap();
+    let soft = dir.path().join("soft.mcap");
+    std::os::unix::fs::symlink(&a, &soft).unwrap();
+    assert!(same_file(&a, &a));
+    assert!(same_file(&a, &hard), "a hard link is the same file");
+    assert!(same_file(&soft, &a), "a symbolic link is the same file");
+    assert!(!same_file(&a, &b), "equal contents are not the same file");
+    assert!(!same_file(&a, &dir.path().join("missing")));
+}
+
+#[test]
+fn a_file_is_named_by_its_kind() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("link");
+    std::os::unix::fs::symlink("/dev/null", &link).unwrap();
+    let fifo = dir.path().join("fifo");
+    mkfifo(&fifo);
+    let kind = |p: &Path| file_kind(&std::fs::symlink_metadata(p).unwrap());
+    assert_eq!(kind(dir.path()), "directory");
+    assert_eq!(kind(&link), "symbolic link");
+    assert_eq!(kind(&fifo), "FIFO (named pipe)");
+    assert_eq!(kind(Path::new("/dev/null")), "character device");
+}
