@@ -168,7 +168,15 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
     let mut intake = Intake::new(&joined.instruments);
     let mut poses = Poses::new();
 
-    let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.pose_rate_hz));
+    let pose_rate_hz = sending_rate(config.pose_rate_hz, joined.max_pose_rate_hz);
+    if pose_rate_hz < config.pose_rate_hz {
+        tracing::warn!(
+            "the server admits {pose_rate_hz} poses a second per instrument: sending at that \
+             rate, not {}",
+            config.pose_rate_hz
+        );
+    }
+    let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / pose_rate_hz));
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut progress_tick = tokio::time::interval(PROGRESS_PERIOD);
     progress_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
@@ -216,7 +224,22 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
         };
         link.leave(reason.into()).await;
     }
-    Ok(summary_of(end, t0, &joined, intake, &poses, instruments))
+    let mut summary = summary_of(end, t0, &joined, intake, &poses, instruments);
+    summary.pose_rate_hz = pose_rate_hz;
+    Ok(summary)
+}
+
+/// The rate a station sends poses at: the one configured, or the server's
+/// `Joined.max_pose_rate_hz` if that is lower. A station above the limit would
+/// empty its burst allowance in a few seconds, then have poses refused and lose its
+/// stream. A limit of 0 (a server that does not state one), or one that is not a
+/// positive finite number, leaves the configured rate.
+pub fn sending_rate(configured_hz: f64, server_limit_hz: f64) -> f64 {
+    if server_limit_hz.is_finite() && server_limit_hz > 0.0 {
+        configured_hz.min(server_limit_hz)
+    } else {
+        configured_hz
+    }
 }
 
 /// Progress: the live figures of the station.
@@ -275,6 +298,7 @@ fn summary_of(
         events: intake.events,
         errors: intake.errors,
         poses_sent: poses.sent,
+        pose_rate_hz: 0.0,
         poses_dropped: poses.full,
         max_force_n: per_instrument
             .iter()

@@ -124,6 +124,7 @@ impl Station for Fake {
                 instruments: granted,
                 surface_frame_rate_hz: 60.0,
                 tick: 0,
+                max_pose_rate_hz: 0.0,
             })),
         }))
         .await

@@ -29,7 +29,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use laparo_server::service::{Caller, Role, ServeConfig, TlsFiles, Tokens};
+use laparo_server::service::{Caller, PoseLimits, Role, ServeConfig, TlsFiles, Tokens};
+use laparo_server::session::input::stall_burst;
 use laparo_tests::server::TestServer;
 
 const TOKEN: &str = "console-instructor-token";
@@ -151,6 +152,11 @@ async fn the_console_works_in_a_real_browser() {
             key: out.path().join("key.pem"),
         }),
         recordings: None,
+        // Lower than the page's 250 Hz: the page must sample at this instead.
+        pose_limits: PoseLimits {
+            rate_hz: 100.0,
+            burst: stall_burst(100.0),
+        },
         ..config.clone()
     })
     .await;

@@ -190,3 +190,41 @@ async fn a_whole_budget_of_poses_at_once_is_recorded_whole() {
     );
     server.shutdown().await.unwrap();
 }
+
+/// A station configured faster than the server admits sends at the server's
+/// limit, which `Joined` states, and so keeps its stream. At 1 kHz against a limit
+/// of 40 Hz it would spend its 200-pose burst in about 0.2 s and then have
+/// 960 poses a second refused, over the abuse limit: the stream would close.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_station_faster_than_the_limit_sends_at_the_limit_joined_states() {
+    use laparo_client::station::{StationConfig, StationEnd, run_station};
+    let rate_hz = 40.0;
+    let server = TestServer::start(ServeConfig {
+        pose_limits: PoseLimits {
+            rate_hz,
+            burst: laparo_server::session::input::stall_burst(rate_hz),
+        },
+        ..ServeConfig::default()
+    })
+    .await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let (_watch, joined) = join(ch.clone(), None, &session, &[]).await.unwrap();
+    assert_eq!(joined.max_pose_rate_hz, rate_hz);
+    drop(_watch);
+
+    let mut config = StationConfig::new(
+        format!("http://{}", server.addr),
+        session.clone(),
+        vec!["left".to_string()],
+    );
+    config.pose_rate_hz = 1000.0;
+    config.duration = Some(Duration::from_millis(1500));
+    let ran = run_station(config).await.unwrap();
+    assert_eq!(ran.end, StationEnd::Duration, "{ran:?}");
+    assert_eq!(ran.pose_rate_hz, rate_hz);
+    assert!(ran.errors.is_empty(), "poses refused: {:?}", ran.errors);
+    // 1.5 s at 40 Hz, less what joining took; far under what 1 kHz would send.
+    assert!((20..=70).contains(&ran.poses_sent), "{}", ran.poses_sent);
+    server.shutdown().await.unwrap();
+}

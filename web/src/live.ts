@@ -366,6 +366,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
             switch (k.case) {
               case "joined":
                 if (k.value.scene) onScene(k.value.scene, k.value.surfaceFrameRateHz);
+                sampler.limitTo(k.value.maxPoseRateHz);
+                page.dataset.poseRateHz = String(sampler.rateHz);
                 // Poses sampled for a station that is gone are not sent to the new one.
                 sampler.pending.length = 0;
                 posesFailed = 0;

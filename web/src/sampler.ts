@@ -3,14 +3,15 @@
 //
 // Input (mouse, wheel, keys, gamepad) moves a Driver between animation frames.
 // At each frame the sampler takes the samples due since the last one, at times
-// t_k = t_0 + k·Δ with Δ = 1 / POSE_RATE_HZ, each with the driver's pivot and
+// t_k = t_0 + k·Δ with Δ = 1 / rateHz, each with the driver's pivot and
 // insertion interpolated linearly between where they were at the last frame and
 // where they are now:
 //
 //   q(t_k) = q_prev + (q_now − q_prev) · (t_k − t_prev) / (t_now − t_prev)
 //
 // so a station in the browser poses the instrument as `laparo station` does (at
-// its default 250 Hz), however fast the display runs. The poses wait in a
+// its default 250 Hz, or the server's limit if lower), however fast the display
+// runs. The poses wait in a
 // bounded queue while a call is in flight; a stalled connection drops the
 // oldest rather than grow the page's memory.
 import type { Driver, Vec } from "./drive";
@@ -49,7 +50,14 @@ export class PoseSampler {
   /** Samples dropped because the queue was full. */
   dropped = 0;
 
-  constructor(readonly rateHz = POSE_RATE_HZ) {}
+  constructor(public rateHz = POSE_RATE_HZ) {}
+
+  /** Samples at POSE_RATE_HZ, or at the server's limit (`Joined.max_pose_rate_hz`,
+   * 0 when it does not say) if that is lower: a station above it spends its burst
+   * allowance in seconds, then has poses refused and loses its stream. */
+  limitTo(serverLimitHz: number): void {
+    this.rateHz = serverLimitHz > 0 && Number.isFinite(serverLimitHz) ? Math.min(POSE_RATE_HZ, serverLimitHz) : POSE_RATE_HZ;
+  }
 
   /** Takes the samples due at `now` (ms) of every driver into the queue. */
   take(now: number, drivers: Map<string, Driver>): void {

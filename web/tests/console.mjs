@@ -533,6 +533,17 @@ try {
       ]);
       check(protocols.includes("h2"), `the page's requests went over ${protocols.join(", ")}, not HTTP/2`);
       console.log(`ok an instrument driven over TLS (${protocols.join(", ")}): force ${tlsForce.toFixed(3)} N`);
+      // This server admits 100 poses a second per instrument (console.rs), and
+      // says so when the station joins: the page samples at that, not at 250 Hz,
+      // and no pose is refused.
+      step = "tls: pose limit";
+      await page.waitForTimeout(4000);
+      const limited = await page.$eval("#live", (e) => ({ rate: e.dataset.poseRateHz, spacing: Number(e.dataset.poseSpacingMs) }));
+      check(limited.rate === "100", `the page samples at ${limited.rate} Hz on a server that admits 100`);
+      check(Math.abs(limited.spacing - 10) < 0.01, `poses ${limited.spacing} ms apart on a server that admits 100 a second`);
+      const tlsNotice = await page.$eval("#notice", (e) => e.textContent);
+      check(!/rejected|limit/.test(tlsNotice), `notice: ${tlsNotice}`);
+      console.log(`ok poses sampled at the server's limit, ${limited.rate} Hz (${limited.spacing} ms apart), none refused`);
     } finally {
       await secure.close();
     }

@@ -136,8 +136,9 @@ pub(crate) fn print_summary(s: &StationSummary) {
     say!("  instrument states    {}", s.states);
     say!("  events               {}", s.events);
     say!(
-        "  poses sent           {} ({} dropped, queue full)",
+        "  poses sent           {} at {} Hz ({} dropped, queue full)",
         s.poses_sent,
+        s.pose_rate_hz,
         s.poses_dropped
     );
     if s.errors.is_empty() {

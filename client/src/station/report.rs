@@ -91,6 +91,9 @@ pub struct StationSummary {
     pub errors: BTreeMap<String, u64>,
     /// Device poses sent.
     pub poses_sent: u64,
+    /// Poses per second per instrument they were sent at: the configured rate, or
+    /// the server's limit if lower ([`sending_rate`](super::sending_rate)).
+    pub pose_rate_hz: f64,
     /// Device poses dropped because the outgoing queue was full.
     pub poses_dropped: u64,
     /// Largest server force |F| on any granted instrument, N.

@@ -274,6 +274,7 @@ impl StationService {
                 instruments: open.instruments.clone(),
                 surface_frame_rate_hz: rate,
                 tick: session.stats.tick.load(Ordering::Relaxed),
+                max_pose_rate_hz: self.limits.rate_hz,
             })),
         };
         let _ = tx.try_send(Ok(joined));
