@@ -422,6 +422,7 @@ fn server_message_round_trips_every_variant() {
             instruments: vec!["grasper".into()],
             surface_frame_rate_hz: 30.0,
             tick: 40,
+            max_pose_rate_hz: 2000.0,
         }),
         Kind::SurfaceFrame(surface_frame()),
         Kind::InstrumentState(instrument_state()),
