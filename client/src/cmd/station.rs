@@ -14,6 +14,7 @@ use crate::observe::event_line;
 use crate::station::{
     DEFAULT_POSE_RATE_HZ, StationConfig, StationError, StationProgress, StationSummary, run_station,
 };
+use laparo_server::service::limits::MAX_NAME_BYTES;
 
 /// `laparo station`.
 #[derive(Args, Debug, Clone)]
@@ -57,7 +58,7 @@ pub async fn run(args: StationArgs) -> Result<(), BoxError> {
         progress: Some(progress_tx),
         on_event: Some(Box::new(|e| say!("event  {}", event_line(e)))),
         stop: Some(ctrl_c()),
-        client_name: format!("laparo station ({})", args.instruments.join(",")),
+        client_name: station_name(&args.instruments),
         ..StationConfig::new(
             args.server.server.clone(),
             args.session.clone(),
@@ -75,6 +76,22 @@ pub async fn run(args: StationArgs) -> Result<(), BoxError> {
     let summary = run_showing_progress(config, progress_rx).await?;
     print_summary(&summary);
     Ok(())
+}
+
+/// The name the station joins by: `laparo station (left,right)`, within the server's
+/// [`MAX_NAME_BYTES`]: instrument names may each take that much, so a list too long
+/// is cut at a character boundary and ends `…)`.
+pub fn station_name(instruments: &[String]) -> String {
+    let full = format!("laparo station ({})", instruments.join(","));
+    if full.len() <= MAX_NAME_BYTES {
+        return full;
+    }
+    let tail = "…)";
+    let mut cut = MAX_NAME_BYTES - tail.len();
+    while !full.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!("{}{tail}", &full[..cut])
 }
 
 /// Runs the station, printing its progress once a second until it ends.

@@ -389,3 +389,27 @@ fn sessions_subcommands_parse_and_check_their_values() {
         assert_eq!(e.exit_code(), 2, "{bad:?}");
     }
 }
+
+#[test]
+fn a_station_is_named_by_its_instruments_within_the_servers_limit() {
+    use super::station::station_name;
+    use laparo_server::service::limits::MAX_NAME_BYTES;
+    let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    assert_eq!(
+        station_name(&names(&["left", "right"])),
+        "laparo station (left,right)"
+    );
+    // Four names of 73 characters, each valid, made a name of 312 bytes that the
+    // server refused; a multi-byte character sits on the cut.
+    let long = "é".repeat(40);
+    for list in [
+        vec!["x".repeat(73); 4],
+        vec![long.clone(); 4],
+        vec![long; 1],
+    ] {
+        let name = station_name(&list);
+        assert!(name.len() <= MAX_NAME_BYTES, "{} bytes", name.len());
+        assert!(name.starts_with("laparo station ("));
+        assert!(name.ends_with(')'));
+    }
+}
