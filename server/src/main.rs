@@ -514,12 +514,19 @@ fn run(args: RunArgs) -> Result<(), String> {
             if let Some(e) = error {
                 return Err(e);
             }
-            if last < sim.time {
+            // A diverged state is not a frame: the series ends with the last good one.
+            if last < sim.time && summary.fault.is_none() {
                 series
                     .write_frame(&sim)
                     .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             }
             println!("wrote {} ({} frames)", path.display(), series.len());
+        }
+        if let Some(fault) = summary.fault {
+            return Err(format!(
+                "stopped at {fault}; a served session would have halted there \
+                 (SIMULATION_HALTED)"
+            ));
         }
     }
     if let Some(path) = &args.export {

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use hdrhistogram::Histogram;
 
 use crate::engine::integrate::StepReport;
+use crate::engine::scene::limits::MAX_COORDINATE_M;
 use crate::engine::simulation::Simulation;
 
 /// The longest run, simulated seconds (`--seconds`, and a trajectory's last
@@ -35,6 +36,35 @@ pub struct RunSummary {
     pub unconverged: u64,
     /// Largest displacement at the end, m.
     pub max_displacement: f64,
+    /// Why the run stopped before its end: the first tick that left the liver beyond
+    /// any physical place ([`fault`]), as a served session would have halted there.
+    pub fault: Option<String>,
+}
+
+/// What is wrong with `sim` after a tick, if anything, by the rule a served session
+/// halts on (`session/halt.rs`): a vertex position that is not finite or beyond
+/// ±[`MAX_COORDINATE_M`] (a scene's mesh must lie within it, so tissue found beyond it
+/// was thrown there by the simulation), or an instrument's reaction that is not
+/// finite. A pass over the positions, nothing allocated unless there is a fault.
+pub fn fault(sim: &Simulation) -> Option<String> {
+    let out = |c: f64| !c.is_finite() || c.abs() > MAX_COORDINATE_M;
+    if let Some((v, x)) = sim
+        .state
+        .x
+        .iter()
+        .enumerate()
+        .find(|(_, x)| x.iter().any(|&c| out(c)))
+    {
+        return Some(format!(
+            "vertex {v} is at ({:.3e}, {:.3e}, {:.3e}) m, beyond the ±{MAX_COORDINATE_M} m a \
+             scene's mesh must lie in: the simulation diverged",
+            x.x, x.y, x.z
+        ));
+    }
+    sim.instruments
+        .iter()
+        .find(|i| i.report.reaction.iter().any(|c| !c.is_finite()))
+        .map(|i| format!("instrument `{}`'s reaction is not finite", i.name))
 }
 
 /// Runs `sim` for `seconds` of simulated time, calling `progress` about ten times.
@@ -76,6 +106,7 @@ pub fn run_observed(
     let mut ran = 0u64;
     let (mut max_substeps, mut cg_total, mut unconverged) = (0, 0u64, 0);
     let every = (ticks / 10).max(1);
+    let mut stopped = None;
     for k in 1..=ticks {
         if let Some((traj, tracks)) = script {
             let t = sim.time + sim.dt;
@@ -95,6 +126,13 @@ pub fn run_observed(
         if k % every == 0 || k == ticks {
             progress(sim, &report);
         }
+        if let Some(what) = fault(sim) {
+            // The tick's progress line, then the fault: nothing after it means
+            // anything.
+            progress(sim, &report);
+            stopped = Some(format!("tick {} (t = {:.3} s): {what}", sim.tick, sim.time));
+            break;
+        }
         if !after_tick(sim) {
             break;
         }
@@ -112,5 +150,50 @@ pub fn run_observed(
         mean_cg_iterations: cg_total as f64 / ticks as f64,
         unconverged,
         max_displacement: sim.max_displacement(),
+        fault: stopped,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Point3;
+
+    use super::*;
+    use crate::engine::scene::Scene;
+
+    #[test]
+    fn a_run_stops_at_the_first_tick_that_leaves_the_liver_out_of_place() {
+        let mut sim = Scene::default_scene().build().unwrap();
+        assert_eq!(fault(&sim), None);
+        sim.state.x[5] = Point3::new(0.0, 2.0 * MAX_COORDINATE_M, 0.0);
+        let said = fault(&sim).unwrap();
+        assert!(
+            said.contains("vertex 5") && said.contains("diverged"),
+            "{said}"
+        );
+        sim.state.x[5] = Point3::new(f64::NAN, 0.0, 0.0);
+        assert!(fault(&sim).unwrap().contains("vertex 5"));
+        // A tick cannot bring a free vertex that is not a number back (one thrown a
+        // kilometre, the implicit step can): the run stops at its first tick, and
+        // says so.
+        sim.state.x[5] = sim.mesh.positions[5];
+        let free = (0..sim.state.x.len())
+            .find(|v| !sim.fixed.contains(&(*v as u32)))
+            .unwrap();
+        sim.state.x[free] = Point3::new(f64::NAN, 0.0, 0.0);
+        let ticks = std::cell::Cell::new(0);
+        let summary = run_observed(
+            &mut sim,
+            1.0,
+            None,
+            |_, _| {},
+            |_| {
+                ticks.set(ticks.get() + 1);
+                true
+            },
+        );
+        assert_eq!(summary.ticks, 1);
+        assert_eq!(ticks.get(), 0, "after_tick ran on a diverged state");
+        assert!(summary.fault.unwrap().starts_with("tick 1 "));
     }
 }
