@@ -14,8 +14,14 @@
 //! tab) keeping its instrument past the station timeout; a reconnect keeping
 //! the instrument where it was left; an evicted page staying out; the sessions
 //! page keeping an action's error and the keyboard focus across refreshes; a
-//! malformed address said over the sessions list; a replay playing on through
-//! the server's restart;
+//! session created with the record box untouched recorded as its scene
+//! declares; a station's 250-character client name keeping the sessions table
+//! within the window; both instruments driven from one page: the 3D view wide in
+//! a narrow window, hovering after a missed release not pivoting, shift+wheel as
+//! a horizontal scroll inserting the second instrument, the arrow keys and W
+//! moving the first, the token entered again keeping the instruments where they
+//! were; a malformed address said over the sessions list; a replay playing on
+//! through the server's restart;
 //! the console over TLS (a self-signed certificate made here), an instrument
 //! driven there over HTTP/2. Then, on a server
 //! without tokens, a page opened by a name that is not the server's told that its
@@ -29,9 +35,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use laparo_proto::v1;
 use laparo_server::service::{Caller, PoseLimits, Role, ServeConfig, TlsFiles, Tokens};
 use laparo_server::session::input::stall_burst;
-use laparo_tests::server::TestServer;
+use laparo_tests::server::{StationStream, TestServer, join_raw, open, with_token};
 
 const TOKEN: &str = "console-instructor-token";
 /// The whole browser run: about 60 s on a 2-core machine.
@@ -170,7 +177,11 @@ async fn the_console_works_in_a_real_browser() {
     ];
     // The script asks for the server to be stopped (a file `stop` in OUT_DIR;
     // answered with `stopped`) and started again on its port (`start`, answered
-    // with `started`), to see the page lose and regain it.
+    // with `started`), to see the page lose and regain it; and for a station
+    // whose client name is 250 characters without a space (`station`, answered
+    // with `station-joined` holding the id of the session it joined, one of its
+    // own), for the sessions table's layout: kept by a heartbeat at each call.
+    let mut long_named: Option<StationStream> = None;
     let log = run_script(
         &web.join("tests/console.mjs"),
         &args,
@@ -178,12 +189,30 @@ async fn the_console_works_in_a_real_browser() {
         RUN_LIMIT,
         async || {
             if out_dir.join("stop").exists() && !out_dir.join("stopped").exists() {
+                long_named = None;
                 server.take().unwrap().shutdown().await.unwrap();
                 std::fs::write(out_dir.join("stopped"), "").unwrap();
             }
             if out_dir.join("start").exists() && !out_dir.join("started").exists() {
                 server = Some(TestServer::start_at(addr, config.clone()).await);
                 std::fs::write(out_dir.join("started"), "").unwrap();
+            }
+            if out_dir.join("station").exists() && !out_dir.join("station-joined").exists() {
+                let (station, session) = join_long_named(server.as_ref().unwrap()).await;
+                long_named = Some(station);
+                // Written whole, then renamed: the script reads it once it is there.
+                std::fs::write(out_dir.join("station-joining"), session).unwrap();
+                std::fs::rename(
+                    out_dir.join("station-joining"),
+                    out_dir.join("station-joined"),
+                )
+                .unwrap();
+            }
+            if let Some(station) = &long_named {
+                // Gone with its session (the script closes it): dropped.
+                if station.tx.try_send(heartbeat()).is_err() && station.tx.is_closed() {
+                    long_named = None;
+                }
             }
         },
     )
@@ -193,6 +222,48 @@ async fn the_console_works_in_a_real_browser() {
         server.shutdown().await.unwrap();
     }
     tls.shutdown().await.unwrap();
+}
+
+/// Creates an unrecorded session of the default scene on `server` and joins it
+/// as a station named by 250 characters without a space, watching; returns the
+/// station's stream and the session's id.
+async fn join_long_named(server: &TestServer) -> (StationStream, String) {
+    let channel = server.channel().await;
+    let session = v1::sessions_client::SessionsClient::new(channel.clone())
+        .create_session(with_token(
+            v1::CreateSessionRequest {
+                scene: "default".into(),
+                idle_timeout_s: None,
+                record: Some(false),
+            },
+            Some(TOKEN),
+        ))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let mut first = open(&session, &[]);
+    if let Some(v1::station_message::Kind::Open(o)) = &mut first.kind {
+        o.client_name = "n".repeat(250);
+    }
+    let mut station = join_raw(channel, Some(TOKEN), Some(first)).await.unwrap();
+    let joined = station.rx.message().await.unwrap();
+    assert!(
+        matches!(
+            &joined,
+            Some(v1::ServerMessage {
+                kind: Some(v1::server_message::Kind::Joined(_))
+            })
+        ),
+        "{joined:?}"
+    );
+    (station, session)
+}
+
+fn heartbeat() -> v1::StationMessage {
+    v1::StationMessage {
+        kind: Some(v1::station_message::Kind::Heartbeat(v1::Heartbeat {})),
+    }
 }
 
 /// The console on a server without tokens opened by a name that resolves to it

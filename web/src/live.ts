@@ -24,6 +24,19 @@ export interface LiveOptions {
   sessionId: string;
   /** Instruments to drive; empty: observe. */
   instruments: string[];
+  /** The view this one replaces in place (the token changed): its instruments
+   * resume where it left them, as after a reconnect. */
+  resume?: Handover;
+}
+
+/** What a live view passes on to the view that replaces it: the drivers of its
+ * instruments, and when its session was created (SessionInfo.created_at; null
+ * before it was known), which tells the same session from another given its id
+ * by a restarted server. */
+export interface Handover {
+  sessionId: string;
+  opened: string | null;
+  drivers: Map<string, Driver>;
 }
 
 /** Interval between writes of the page's text (status line, gauges, data- attributes), ms. */
@@ -32,7 +45,7 @@ const TEXT_MS = 100;
 /** Where the tip starts, m before the liver's centre: outside its surface. */
 const STANDOFF_FRACTION_OF_RADIUS = 1.0;
 
-export function live(root: HTMLElement, options: LiveOptions, signal: AbortSignal): void {
+export function live(root: HTMLElement, options: LiveOptions, signal: AbortSignal): Handover {
   const driving = options.instruments.length > 0;
   const viewport = el("div", { class: "viewport", id: "viewport" });
   const hud = el("div", { class: "status", id: "hud" });
@@ -42,11 +55,11 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   const side = el(
     "div",
     { class: "side" },
-    el("h3", {}, driving ? `driving ${options.instruments.join(", ")}` : "observing"),
-    el("p", {}, `session ${options.sessionId}`),
+    el("h3", { title: driving ? options.instruments.join(", ") : "" }, driving ? `driving ${options.instruments.join(", ")}` : "observing"),
+    el("p", { title: options.sessionId }, `session ${options.sessionId}`),
     gauges.root,
     el("p", { class: "controls" }, scopeButton),
-    driving ? el("p", {}, "drag: pivot about the trocar · wheel: insert · Q/E: roll · right-drag: orbit · gamepad: sticks, triggers, shoulders") : "",
+    driving ? el("p", {}, "drag or arrow keys: pivot about the trocar · wheel or W/S: insert · Q/E: roll · shift: the second instrument · right-drag: orbit · gamepad: sticks, triggers, shoulders") : "",
     hud,
     el("h4", {}, "events"),
     events,
@@ -67,6 +80,11 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   const forceN = new Map<string, number>();
   let scene: SceneDescription | null = null;
   const drivers = new Map<string, Driver>();
+  const resume = options.resume;
+  if (resume && resume.sessionId === options.sessionId && resume.opened !== null) {
+    for (const [name, d] of resume.drivers) if (options.instruments.includes(name)) drivers.set(name, d);
+  }
+  const handover: Handover = { sessionId: options.sessionId, opened: drivers.size > 0 ? resume!.opened : null, drivers };
   let handle = "";
   let sequence = 0n;
   const sentAt = new Map<string, { seq: bigint; t: number }>();
@@ -139,8 +157,6 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
   }
 
   let closed: string | null = null;
-  /** When the session the view opened was created (SessionInfo.created_at). */
-  let opened: string | null = null;
 
   const sampler = new PoseSampler();
   const sendStats = { calls: 0, poses: 0, lastBatch: 0, spacingMs: NaN };
@@ -210,8 +226,9 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     }
   }
 
-  // Input: mouse drag pivots the first instrument driven (shift: the second),
-  // wheel inserts, Q/E roll. Right-drag orbits (OrbitControls).
+  // Input: mouse drag or the arrow keys pivot the first instrument driven
+  // (shift: the second), the wheel or W/S insert, Q/E roll. Right-drag orbits
+  // (OrbitControls).
   view.controls.mouseButtons = driving
     ? { LEFT: null as unknown as never, MIDDLE: 1, RIGHT: 0 } // RIGHT: ROTATE, MIDDLE: DOLLY
     : view.controls.mouseButtons;
@@ -223,9 +240,21 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     canvas.addEventListener("pointerdown", (e) => {
       if (e.button === 0) dragging = { x: e.clientX, y: e.clientY };
     });
-    window.addEventListener("pointerup", () => (dragging = null), { signal });
+    // A drag ends however the button comes up: released (over the page or
+    // not), cancelled, the pointer capture lost, or the window left (a release
+    // outside it is never seen); and any move with the primary button up ends
+    // it too, so a missed release never leaves hovering pivoting the instrument.
+    const endDrag = () => (dragging = null);
+    window.addEventListener("pointerup", endDrag, { signal });
+    window.addEventListener("pointercancel", endDrag, { signal });
+    window.addEventListener("blur", endDrag, { signal });
+    canvas.addEventListener("lostpointercapture", endDrag);
     canvas.addEventListener("pointermove", (e) => {
       if (!dragging) return;
+      if ((e.buttons & 1) === 0) {
+        dragging = null;
+        return;
+      }
       target(e.shiftKey)?.pivot(-(e.clientX - dragging.x) * RAD_PER_PIXEL, -(e.clientY - dragging.y) * RAD_PER_PIXEL);
       dragging = { x: e.clientX, y: e.clientY };
     });
@@ -233,7 +262,9 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       "wheel",
       (e) => {
         e.preventDefault();
-        target(e.shiftKey)?.insert(e.deltaY * M_PER_WHEEL);
+        // Shift+wheel comes as a horizontal scroll on macOS and in some Chrome
+        // setups (deltaX, deltaY zero): either one inserts the second instrument.
+        target(e.shiftKey)?.insert((e.shiftKey ? e.deltaY || e.deltaX : e.deltaY) * M_PER_WHEEL);
       },
       { passive: false },
     );
@@ -242,10 +273,28 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       (e) => {
         // Keys typed into a field (the token, say) are the field's, not the instrument's.
         if (e.target instanceof HTMLElement && (e.target.isContentEditable || e.target.closest("input, select, textarea"))) return;
+        // Ctrl+W, Cmd+S and the like are the browser's.
+        if (e.ctrlKey || e.metaKey || e.altKey) return;
         const d = target(e.shiftKey);
         if (!d) return;
-        if (e.key === "q" || e.key === "Q") d.roll -= 0.1;
-        if (e.key === "e" || e.key === "E") d.roll += 0.1;
+        // Driving by keyboard alone (shift: the second instrument): the arrows
+        // pivot, W/S (or PageDown/PageUp) insert and pull back, Q/E roll; held
+        // down, a key repeats. The arrows and pages would otherwise scroll.
+        const key = e.key.length === 1 ? e.key.toLowerCase() : e.key;
+        const RAD_PER_KEY = 0.02;
+        const M_PER_KEY = 0.002;
+        switch (key) {
+          case "q": d.roll -= 0.1; break;
+          case "e": d.roll += 0.1; break;
+          case "ArrowLeft": d.pivot(RAD_PER_KEY, 0); break;
+          case "ArrowRight": d.pivot(-RAD_PER_KEY, 0); break;
+          case "ArrowUp": d.pivot(0, RAD_PER_KEY); break;
+          case "ArrowDown": d.pivot(0, -RAD_PER_KEY); break;
+          case "w": case "PageDown": d.insert(M_PER_KEY); break;
+          case "s": case "PageUp": d.insert(-M_PER_KEY); break;
+          default: return;
+        }
+        e.preventDefault();
       },
       { signal },
     );
@@ -346,8 +395,8 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
         // found on a reconnect may be another one. Its creation time tells.
         const info = await sessions.getSession({ sessionId: options.sessionId }, { signal });
         const created = `${info.createdAt?.seconds ?? ""}.${info.createdAt?.nanos ?? ""}`;
-        if (opened === null) opened = created;
-        else if (created !== opened) {
+        if (handover.opened === null) handover.opened = created;
+        else if (created !== handover.opened) {
           closed = `session ${options.sessionId} ended (the server restarted; ${options.sessionId} is now another session)`;
           break;
         }
@@ -464,4 +513,5 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
       notice(closed);
     }
   })();
+  return handover;
 }

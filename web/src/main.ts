@@ -5,14 +5,22 @@
 //   #/replay/FILE           replay a recording
 import "./style.css";
 import { live } from "./live";
+import type { Handover } from "./live";
 import { replay } from "./replay";
 import { sessionsPage } from "./sessions";
 import { notice, setConnection } from "./status";
 import { setToken, token } from "./token";
 
 let current: AbortController | null = null;
+/** The live view shown, if one is. */
+let shown: Handover | null = null;
 
-function route(): void {
+/** Shows the view the address names, in place of the one shown. `resume`: a
+ * live view of the same session takes over the instruments of the one it
+ * replaces where they were (the token changed, the view did not). */
+function route(resume = false): void {
+  const previous = resume ? shown : null;
+  shown = null;
   current?.abort();
   current = new AbortController();
   const signal = current.signal;
@@ -34,7 +42,7 @@ function route(): void {
   }
   if (parts[0] === "live" && parts[1]) {
     const drive = params.get("drive");
-    live(app, { sessionId: parts[1], instruments: drive ? drive.split(",").filter(Boolean) : [] }, signal);
+    shown = live(app, { sessionId: parts[1], instruments: drive ? drive.split(",").filter(Boolean) : [], resume: previous ?? undefined }, signal);
   } else if (parts[0] === "replay" && parts[1]) {
     replay(app, parts[1], signal);
   } else {
@@ -47,9 +55,9 @@ input.value = token();
 document.getElementById("token-form")!.addEventListener("submit", (e) => {
   e.preventDefault();
   setToken(input.value.trim());
-  route();
+  route(true);
 });
-window.addEventListener("hashchange", route);
+window.addEventListener("hashchange", () => route());
 // Nothing may fail silently: an error nobody caught is said on the page (and
 // still reported to the browser, where the tests see it).
 window.addEventListener("unhandledrejection", (e) => notice(`unexpected error: ${e.reason}`));

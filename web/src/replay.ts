@@ -38,7 +38,7 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     el(
       "div",
       { class: "side" },
-      el("h3", {}, `replay ${file}`),
+      el("h3", { title: file }, `replay ${file}`),
       el("p", { class: "controls" }, play, pause, speed, el("label", {}, resim, " re-simulated")),
       el("p", {}, seek, " ", time),
       gauges.root,

@@ -17,17 +17,21 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
   const sessionTable = el("table", { id: "sessions" });
   const recordingTable = el("table", { id: "recordings" });
   const sceneSelect = el("select", { id: "new-scene" });
+  // Indeterminate until the user ticks or clears it: the session is then
+  // recorded as its scene declares ([recording] enabled), the request leaving
+  // `record` unset; once changed, the box decides.
   const record = el("input", { id: "new-record", type: "checkbox" });
+  record.indeterminate = true;
   const create = el("button", { id: "create", type: "button" }, "create session");
   root.replaceChildren(
     el("section", {}, el("h2", {}, "scenes"), sceneTable),
-    el("section", {}, el("h2", {}, "sessions"), el("p", { class: "controls" }, sceneSelect, el("label", {}, record, " record"), create), sessionTable),
+    el("section", {}, el("h2", {}, "sessions"), el("p", { class: "controls" }, sceneSelect, el("label", { title: "as the scene declares until ticked or cleared" }, record, " record"), create), sessionTable),
     el("section", {}, el("h2", {}, "recordings"), recordingTable),
   );
   let known: SceneSummary[] = [];
   create.addEventListener("click", async () => {
     try {
-      const s = await sessions.createSession({ scene: sceneSelect.value, record: record.checked }, { signal });
+      const s = await sessions.createSession({ scene: sceneSelect.value, record: record.indeterminate ? undefined : record.checked }, { signal });
       location.hash = `#/live/${encodeURIComponent(s.sessionId)}?drive=${encodeURIComponent(known.find((k) => k.name === s.scene)?.instruments[0] ?? "")}`;
     } catch (e) {
       notice(`creating a session: ${failure(e).text}`);

@@ -5,7 +5,7 @@
 // The server at URL is stopped and started again on request: the script writes
 // OUT_DIR/stop and waits for OUT_DIR/stopped, then OUT_DIR/start and waits for
 // OUT_DIR/started (tests/tests/console.rs answers).
-import { copyFileSync, existsSync, statSync, truncateSync, writeFileSync } from "node:fs";
+import { copyFileSync, existsSync, readFileSync, statSync, truncateSync, writeFileSync } from "node:fs";
 import { launch, reportFailure, watch } from "./browser.mjs";
 import { decodePng } from "./png.mjs";
 
@@ -25,6 +25,30 @@ async function ask(what, answer) {
 
 const liveState = (page, state) =>
   page.waitForFunction((s) => document.querySelector("#connection")?.dataset.state === s, state, { timeout: T });
+
+/** The tip of `instrument` (its gauge's data-tip) once it has stayed put for
+ * 800 ms (a slow frame may hold the gauge for a moment). */
+async function restingTip(page, instrument) {
+  let last = null;
+  let same = 0;
+  for (const t0 = Date.now(); Date.now() - t0 < T; ) {
+    const tip = await page.$eval(`#gauges [data-instrument="${instrument}"]`, (e) => e.dataset.tip);
+    same = tip && tip === last ? same + 1 : 0;
+    if (same === 2) return tip;
+    last = tip;
+    await page.waitForTimeout(400);
+  }
+  throw new Error(`${step}: the ${instrument} tip never came to rest`);
+}
+
+/** Waits up to 5 s for the tip of `instrument` to leave `from`; fails saying `what`. */
+async function tipMoves(page, instrument, from, what) {
+  await page
+    .waitForFunction(([i, b]) => document.querySelector(`#gauges [data-instrument="${i}"]`)?.dataset.tip !== b, [instrument, from], { timeout: 5000 })
+    .catch(() => {
+      throw new Error(`${step}: ${what} left the ${instrument} tip at ${from}`);
+    });
+}
 
 function check(cond, what) {
   if (!cond) throw new Error(`${step}: ${what}`);
@@ -343,6 +367,14 @@ try {
   await pad.waitForFunction(() => document.querySelector('#gauges [data-instrument="left"]')?.dataset.tip, null, { timeout: T });
   console.log(`ok a claimed instrument was waited for ("${waiting}") and taken once let go`);
 
+  // A session created with the record box untouched is recorded as its scene
+  // declares: the default scene records.
+  step = "recorded as the scene declares";
+  const recording = await driver.waitForSelector(`#sessions tr[data-session="${padSession}"] td:nth-child(9)`, { timeout: T });
+  const said9 = await recording.textContent();
+  check(/^recording /.test(said9), `the session created without touching the record box says "${said9}"`);
+  console.log(`ok a session of a scene that records is recorded: "${said9}"`);
+
   // The sessions page, refreshed every 2 s, keeps an action's error (here a
   // session of a scene there is none of) and the keyboard's focus.
   step = "sessions page: notice and focus kept";
@@ -360,6 +392,18 @@ try {
   const focused = await driver.$eval(link, (e) => e === document.activeElement);
   check(focused, `after a refresh the focus is on ${await driver.evaluate(() => document.activeElement?.outerHTML.slice(0, 80))}`);
   console.log(`ok a refresh kept the notice "${kept}" and the focus on the observe link`);
+
+  // A station's client name of 250 characters without a space wraps in the
+  // sessions table instead of widening it past the window.
+  step = "long client name";
+  await ask("station", "station-joined");
+  const longSession = readFileSync(`${out}/station-joined`, "utf8");
+  await driver.waitForFunction((s) => /n{250}/.test(document.querySelector(`#sessions tr[data-session="${s}"]`)?.textContent), longSession, { timeout: T });
+  const widths = await driver.evaluate(() => ({ table: document.querySelector("#sessions").scrollWidth, page: document.documentElement.scrollWidth, window: window.innerWidth }));
+  check(widths.table <= widths.window && widths.page <= widths.window, `with a 250-character client name the sessions table is ${widths.table} px wide, the page ${widths.page} px, in a ${widths.window} px window`);
+  await driver.click(`#sessions tr[data-session="${longSession}"] button.close`);
+  await driver.waitForSelector(`#sessions tr[data-session="${longSession}"]`, { state: "detached", timeout: T });
+  console.log(`ok a 250-character client name keeps the sessions table ${widths.table} px wide in a ${widths.window} px window`);
 
   // A malformed address is said, over the sessions list.
   step = "malformed address";
@@ -449,6 +493,75 @@ try {
   check(after === "ended", `the evicted page went ${after}`);
   console.log(`ok an evicted page stays out: ${evicted}`);
   await pad.close();
+
+  // Both instruments of a session driven from one page (the pad's station is
+  // gone): the layout in a narrow window, a drag whose release was missed,
+  // shift+wheel as a horizontal scroll, the keyboard, and the token entered again.
+  step = "two instruments";
+  await driver.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=left,right`);
+  await liveState(driver, "live");
+  await driver.waitForFunction(() => [...document.querySelectorAll("#gauges [data-instrument]")].every((e) => e.dataset.held && e.dataset.tip), null, { timeout: T });
+  step = "narrow window";
+  await driver.setViewportSize({ width: 360, height: 640 });
+  const narrow = await driver.$eval("#viewport canvas", (e) => e.getBoundingClientRect().width);
+  await driver.setViewportSize({ width: 1000, height: 700 });
+  check(narrow >= 300, `in a 360 px window the 3D view is ${narrow} px wide`);
+  console.log(`ok in a 360 px window the 3D view is ${narrow} px wide`);
+  // A press, a move, then moves with the button up and no release seen (as
+  // when it is released outside the window): hovering does not pivot.
+  step = "missed release";
+  const c2 = await driver.$eval("#viewport canvas", (e) => {
+    const r = e.getBoundingClientRect();
+    return { x: r.x + r.width / 2, y: r.y + r.height / 2 };
+  });
+  const cdp = await context.newCDPSession(driver);
+  const mouse = (type, dx, buttons) =>
+    cdp.send("Input.dispatchMouseEvent", { type, x: c2.x + dx, y: c2.y, button: type === "mouseMoved" ? (buttons ? "left" : "none") : "left", buttons, clickCount: 1 });
+  await mouse("mousePressed", 0, 1);
+  await mouse("mouseMoved", 4, 1);
+  await mouse("mouseMoved", 6, 0);
+  const unpressed = await restingTip(driver, "left");
+  for (const dx of [20, 40, 60, 80]) await mouse("mouseMoved", dx, 0);
+  await driver.waitForTimeout(300);
+  const hovered = await restingTip(driver, "left");
+  await mouse("mouseReleased", 80, 0);
+  await cdp.detach();
+  check(hovered === unpressed, `hovering with the button up moved the left tip from ${unpressed} to ${hovered}`);
+  console.log(`ok hovering after a missed release left the tip at ${hovered}`);
+  // Shift+wheel sent as a horizontal scroll inserts the second instrument.
+  step = "shift+wheel sideways";
+  const [left1, right1] = [await restingTip(driver, "left"), await restingTip(driver, "right")];
+  await driver.$eval("#viewport canvas", (c) => {
+    for (let i = 0; i < 4; i++) c.dispatchEvent(new WheelEvent("wheel", { deltaX: 100, deltaY: 0, shiftKey: true, bubbles: true, cancelable: true }));
+  });
+  await tipMoves(driver, "right", right1, "shift+wheel with only deltaX");
+  check((await restingTip(driver, "left")) === left1, "shift+wheel moved the left instrument");
+  console.log(`ok shift+wheel as deltaX inserted the right instrument: ${right1} → ${await restingTip(driver, "right")}`);
+  // The arrows pivot the first instrument, W inserts it.
+  step = "keyboard";
+  const left2 = await restingTip(driver, "left");
+  for (let i = 0; i < 3; i++) await driver.keyboard.press("ArrowLeft");
+  await tipMoves(driver, "left", left2, "ArrowLeft");
+  const left3 = await restingTip(driver, "left");
+  for (let i = 0; i < 3; i++) await driver.keyboard.press("w");
+  await tipMoves(driver, "left", left3, "W");
+  console.log(`ok the keyboard pivoted the left tip (${left2} → ${left3}) and inserted it (→ ${await restingTip(driver, "left")})`);
+  // The token entered again (the header's "use") joins again, the instruments
+  // where they were: moved off the start pose first (by the keys above too).
+  step = "token entered again";
+  const left4 = await restingTip(driver, "left");
+  for (let i = 0; i < 5; i++) await driver.keyboard.press("ArrowUp");
+  await tipMoves(driver, "left", left4, "ArrowUp");
+  const leftKept = await restingTip(driver, "left");
+  const heldBy = await driver.$eval('#gauges [data-instrument="left"]', (e) => e.dataset.held);
+  await useToken(driver, token);
+  await liveState(driver, "live");
+  await driver.waitForFunction((h) => !["", h].includes(document.querySelector('#gauges [data-instrument="left"]')?.dataset.held ?? ""), heldBy, { timeout: T });
+  await driver.waitForTimeout(500);
+  const leftAgain = await restingTip(driver, "left");
+  const apartMm = 1000 * Math.hypot(...leftKept.split(",").map((v, i) => Number(v) - Number(leftAgain.split(",")[i])));
+  check(apartMm < 0.5, `the left tip was at ${leftKept} before the token was entered again, at ${leftAgain} after`);
+  console.log(`ok the token entered again kept the left tip at ${leftKept} (${leftAgain} after, ${apartMm.toFixed(2)} mm apart)`);
 
   // A live view left frees its WebGL context at once: a browser keeps about 16,
   // and a context only disposed stays until garbage collection, so switching

@@ -20,7 +20,7 @@ export class Gauges {
     for (const name of names) {
       const bar = el("div");
       const text = el("span", {}, "free");
-      const row = el("div", { class: "instrument", "data-instrument": name, "data-force-n": "0" }, el("strong", {}, name), " ", text, el("div", { class: "gauge" }, bar));
+      const row = el("div", { class: "instrument", "data-instrument": name, "data-force-n": "0" }, el("strong", { title: name }, name), " ", text, el("div", { class: "gauge" }, bar));
       this.root.append(row);
       this.rows.set(name, { row, bar, text, state: null, mine: false });
     }

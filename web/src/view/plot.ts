@@ -2,6 +2,14 @@
 // the replay's current time as a vertical line.
 const COLORS = ["#d9534f", "#337ab7", "#5cb85c", "#f0ad4e"];
 
+/** The colour of the k-th instrument: the four above, then hues a golden
+ * angle apart, so that no two of any number of instruments share one. */
+export function color(k: number): string {
+  if (k < COLORS.length) return COLORS[k];
+  const hue = (280 + (k - COLORS.length) * 137.508) % 360;
+  return `hsl(${hue.toFixed(1)}, 65%, ${k % 2 ? 38 : 48}%)`;
+}
+
 export class ForcePlot {
   readonly canvas = Object.assign(document.createElement("canvas"), { className: "plot", id: "force-plot" });
   private series = new Map<string, { t: number[]; f: number[] }>();
@@ -56,8 +64,12 @@ export class ForcePlot {
     g.fillText(`${fmax.toFixed(1)} N`, 2, 12);
     g.fillText(`${tmax.toFixed(0)} s`, w - 25, h - 2);
     let k = 0;
+    // The legend: each name after the last, wrapped to a new line where it
+    // would pass the canvas's right edge.
+    let lx = 35;
+    let ly = 12;
     for (const [name, s] of this.series) {
-      g.strokeStyle = COLORS[k % COLORS.length];
+      g.strokeStyle = color(k);
       g.beginPath();
       for (let i = 0; i < s.t.length; i++) {
         if (i === 0) g.moveTo(x(s.t[i]), y(s.f[i]));
@@ -65,7 +77,14 @@ export class ForcePlot {
       }
       g.stroke();
       g.fillStyle = g.strokeStyle;
-      g.fillText(name, 35 + 50 * k, 12);
+      // A name wider than the canvas is squeezed into it.
+      const width = Math.min(g.measureText(name).width, w - 37);
+      if (lx > 35 && lx + width > w - 2) {
+        lx = 35;
+        ly += 12;
+      }
+      g.fillText(name, lx, ly, width);
+      lx += width + 10;
       k++;
     }
     g.strokeStyle = "#999";
