@@ -51,6 +51,9 @@ export interface Failure {
   evicted?: boolean;
 }
 
+/** What connect says when a call's own deadline (timeoutMs) passes. */
+const CLIENT_TIMEOUT = "the operation timed out";
+
 /** The header by which the server marks its refusal of the page's host
  * (`server/src/console/host.rs`, `REFUSAL_HEADER`). */
 const REFUSAL_HEADER = "laparo-refusal";
@@ -81,8 +84,13 @@ export function failure(e: unknown): Failure {
       // its text says by whom and why): joining again would undo the eviction.
       return { code: err.code, text, retry: false, auth: false, evicted: true };
     case Code.DeadlineExceeded:
-      // A unary call past UNARY_TIMEOUT_MS (no connection free, say).
-      return { code: err.code, text: `no answer within ${UNARY_TIMEOUT_MS / 1000} s: ${text}`, retry: true, auth: false };
+      // A unary call past UNARY_TIMEOUT_MS (no connection free, say): the
+      // client's own deadline, whose message is connect's. Otherwise the server
+      // ended the stream for its station timeout, and its text says why.
+      if (err.rawMessage === CLIENT_TIMEOUT) {
+        return { code: err.code, text: `no answer within ${UNARY_TIMEOUT_MS / 1000} s: ${text}`, retry: true, auth: false };
+      }
+      return { code: err.code, text: `connection lost: ${text}`, retry: true, auth: false };
     case Code.Unavailable:
     case Code.Unknown:
     case Code.Internal:

@@ -455,6 +455,10 @@ try {
     return r.fulfill(dropped);
   });
   await liveState(pad, "reconnecting");
+  // The server ended the station (DEADLINE_EXCEEDED, its station timeout): the
+  // page says the server's reason, not that a call of its own went unanswered.
+  const timedOut = await pad.$eval("#notice", (e) => e.textContent);
+  check(/connection lost: station \d+ sent nothing/.test(timedOut) && !/no answer within/.test(timedOut), `notice on the station timeout: ${timedOut}`);
   await pad.unroute(sends);
   // Failed calls are made again after a backoff, not at every frame.
   check(refused < 30, `${refused} SendPoses calls while they failed`);
