@@ -45,7 +45,14 @@ const TEXT_MS = 100;
 /** Where the tip starts, m before the liver's centre: outside its surface. */
 const STANDOFF_FRACTION_OF_RADIUS = 1.0;
 
-export function live(root: HTMLElement, options: LiveOptions, signal: AbortSignal): Handover {
+/** Instruments one page drives: the first and, with shift (or a gamepad's second
+ * stick and trigger), the second. More would be claimed from every other station
+ * and never moved. */
+export const MAX_DRIVEN = 2;
+
+export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal): Handover {
+  const left = asked.instruments.slice(MAX_DRIVEN);
+  const options = { ...asked, instruments: asked.instruments.slice(0, MAX_DRIVEN) };
   const driving = options.instruments.length > 0;
   const viewport = el("div", { class: "viewport", id: "viewport" });
   const hud = el("div", { class: "status", id: "hud" });
@@ -57,6 +64,9 @@ export function live(root: HTMLElement, options: LiveOptions, signal: AbortSigna
     { class: "side" },
     el("h3", { title: driving ? options.instruments.join(", ") : "" }, driving ? `driving ${options.instruments.join(", ")}` : "observing"),
     el("p", { title: options.sessionId }, `session ${options.sessionId}`),
+    left.length > 0
+      ? el("p", { id: "not-driven" }, `not claimed: ${left.join(", ")} (a page drives ${MAX_DRIVEN} instruments; open another page for the rest)`)
+      : "",
     gauges.root,
     el("p", { class: "controls" }, scopeButton),
     driving ? el("p", {}, "drag or arrow keys: pivot about the trocar · wheel or W/S: insert · Q/E: roll · shift: the second instrument · right-drag: orbit · gamepad: sticks, triggers, shoulders") : "",

@@ -4,6 +4,7 @@
 // recordings with a replay link. Refreshed every two seconds; a failure is said
 // and retried.
 import { Code, failure, recordings, scenes, sessions } from "./api";
+import { MAX_DRIVEN } from "./live";
 import type { SessionInfo } from "./gen/laparo/v1/session_pb";
 import type { RecordingInfo } from "./gen/laparo/v1/recording_pb";
 import { RecordingState } from "./gen/laparo/v1/recording_pb";
@@ -120,8 +121,13 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
       {},
       el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}`, class: "observe" }, "observe"),
       ...s.instruments.map((i) => el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${encodeURIComponent(i.instrument)}`, class: "drive", style: "margin-left:0.5rem" }, `drive ${i.instrument}`)),
+      // One page drives two instruments (live.ts, MAX_DRIVEN): the first two.
       s.instruments.length > 1
-        ? el("a", { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${s.instruments.map((i) => encodeURIComponent(i.instrument)).join(",")}`, style: "margin-left:0.5rem" }, "drive all")
+        ? el(
+            "a",
+            { href: `#/live/${encodeURIComponent(s.sessionId)}?drive=${s.instruments.slice(0, MAX_DRIVEN).map((i) => encodeURIComponent(i.instrument)).join(",")}`, class: "drive-both", style: "margin-left:0.5rem" },
+            s.instruments.length > MAX_DRIVEN ? `drive ${s.instruments.slice(0, MAX_DRIVEN).map((i) => i.instrument).join(" + ")}` : "drive both",
+          )
         : "",
     );
     const close = el("button", { type: "button", class: "close" }, "close");

@@ -501,10 +501,16 @@ try {
   // Both instruments of a session driven from one page (the pad's station is
   // gone): the layout in a narrow window, a drag whose release was missed,
   // shift+wheel as a horizontal scroll, the keyboard, and the token entered again.
+  // Asked for a third, the page claims the two it can move and says so: a third
+  // claimed would be held from every other station and never moved (a scene
+  // without `extra` would refuse the whole claim).
   step = "two instruments";
-  await driver.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=left,right`);
+  await driver.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=left,right,extra`);
   await liveState(driver, "live");
   await driver.waitForFunction(() => [...document.querySelectorAll("#gauges [data-instrument]")].every((e) => e.dataset.held && e.dataset.tip), null, { timeout: T });
+  const notDriven = await driver.$eval("#not-driven", (e) => e.textContent);
+  check(/not claimed: extra/.test(notDriven), `a third instrument asked for: ${notDriven}`);
+  console.log(`ok a page asked for three instruments drives two: ${notDriven}`);
   step = "narrow window";
   await driver.setViewportSize({ width: 360, height: 640 });
   const narrow = await driver.$eval("#viewport canvas", (e) => e.getBoundingClientRect().width);
