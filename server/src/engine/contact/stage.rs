@@ -193,14 +193,7 @@ impl ContactStage {
                         let retreat = contact_normal(&x, &prev, length, radius, tip_contact)
                             .map_or(0.0, |(m, _)| -(to - x).dot(&m));
                         if retreat > MAX_RETREAT * radius {
-                            slide[vi] = Vector3::zeros();
-                            holders[vi] &= !bit;
-                            if holders[vi] == 0 && !fixed[vi] {
-                                imposed.release(v);
-                            }
-                            if let Some(settle) = settle.as_mut() {
-                                settle.let_go(v);
-                            }
+                            let_go(v, bit, holders, slide, fixed, imposed, settle.as_mut());
                             return false;
                         }
                         slid[vi] = std::mem::take(&mut slide[vi]);
@@ -211,11 +204,8 @@ impl ContactStage {
                 _ => {
                     let bit = 1u8 << k;
                     for &v in &ins.held {
-                        self.slide[v as usize] = Vector3::zeros();
-                        self.holders[v as usize] &= !bit;
-                        if self.holders[v as usize] == 0 && !self.s.fixed[v as usize] {
-                            imposed.release(v);
-                        }
+                        let (holders, slide) = (&mut self.holders, &mut self.slide);
+                        let_go(v, bit, holders, slide, &self.s.fixed, imposed, None);
                     }
                     ins.held.clear();
                 }
@@ -591,14 +581,7 @@ impl ContactStage {
                 Hold::Release => false,
             };
             if !keep {
-                if let Some(settle) = settle.as_mut() {
-                    settle.let_go(v);
-                }
-                slide[vi] = Vector3::zeros();
-                holders[vi] &= !bit;
-                if holders[vi] == 0 && !s.fixed[vi] {
-                    imposed.release(v);
-                }
+                let_go(v, bit, holders, slide, &s.fixed, imposed, settle.as_mut());
             }
             keep
         });
@@ -703,6 +686,29 @@ impl ContactStage {
                 }
             }
         }
+    }
+}
+
+/// Instrument `bit` lets go of vertex `v`: its slide is dropped, and it is freed
+/// unless another instrument holds it or it is a support; `settle`, when given,
+/// remembers that it was let go ([`Settle::taken_back`]).
+fn let_go(
+    v: u32,
+    bit: u8,
+    holders: &mut [u8],
+    slide: &mut [Vector3<f64>],
+    fixed: &[bool],
+    imposed: &mut Imposed,
+    settle: Option<&mut Settle>,
+) {
+    let vi = v as usize;
+    if let Some(settle) = settle {
+        settle.let_go(v);
+    }
+    slide[vi] = Vector3::zeros();
+    holders[vi] &= !bit;
+    if holders[vi] == 0 && !fixed[vi] {
+        imposed.release(v);
     }
 }
 
