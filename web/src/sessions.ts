@@ -255,21 +255,23 @@ function syncRows(table: HTMLTableElement, header: HTMLTableRowElement, rows: Ro
   for (const r of rows) {
     let tr = old.get(r.key);
     old.delete(r.key);
+    let focused: string | null = null;
     if (!tr || shapes.get(tr) !== r.shape) {
       // A row rebuilt (its stations changed, say) gives the focus it held to
-      // the same control of the new row: the same link, or the same button.
-      const focused = tr?.contains(document.activeElement) ? controlKey(document.activeElement) : null;
+      // the same control of the new row: the same link, or the same button,
+      // once the row is in the page (a detached element takes no focus).
+      focused = tr?.contains(document.activeElement) ? controlKey(document.activeElement) : null;
       tr?.remove();
       tr = r.build();
       tr.dataset.key = r.key;
       shapes.set(tr, r.shape);
-      if (focused) [...tr.querySelectorAll<HTMLElement>("a, button")].find((e) => controlKey(e) === focused)?.focus();
     }
     r.texts.forEach((text, i) => {
       const cell = tr.cells[i];
       if (text !== null && cell && cell.textContent !== text) cell.textContent = text;
     });
     if (previous.nextElementSibling !== tr) previous.after(tr);
+    if (focused) [...tr.querySelectorAll<HTMLElement>("a, button")].find((e) => controlKey(e) === focused)?.focus();
     previous = tr;
   }
   for (const tr of old.values()) tr.remove();
