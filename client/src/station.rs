@@ -224,9 +224,11 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
         };
         link.leave(reason.into()).await;
     }
-    let mut summary = summary_of(end, t0, &joined, intake, &poses, instruments);
-    summary.pose_rate_hz = pose_rate_hz;
-    Ok(summary)
+    let sent = Sending {
+        poses: &poses,
+        rate_hz: pose_rate_hz,
+    };
+    Ok(summary_of(end, t0, &joined, intake, sent, instruments))
 }
 
 /// The rate a station sends poses at: the one configured, or the server's
@@ -271,6 +273,12 @@ fn progress_of(
     }
 }
 
+/// What the station sent: its pose counters and the rate it sent at.
+struct Sending<'a> {
+    poses: &'a Poses,
+    rate_hz: f64,
+}
+
 /// The end: the force loops stopped, what the station saw summed up. Poses dropped
 /// are those the full queue refused; once the request stream is gone, the server's
 /// stream says how the call ends.
@@ -279,7 +287,7 @@ fn summary_of(
     t0: Instant,
     joined: &v1::Joined,
     intake: Intake,
-    poses: &Poses,
+    sent: Sending<'_>,
     instruments: Vec<Instrument>,
 ) -> StationSummary {
     let elapsed_s = t0.elapsed().as_secs_f64();
@@ -297,9 +305,9 @@ fn summary_of(
         states: intake.states,
         events: intake.events,
         errors: intake.errors,
-        poses_sent: poses.sent,
-        pose_rate_hz: 0.0,
-        poses_dropped: poses.full,
+        poses_sent: sent.poses.sent,
+        pose_rate_hz: sent.rate_hz,
+        poses_dropped: sent.poses.full,
         max_force_n: per_instrument
             .iter()
             .map(|i| i.max_force_n)

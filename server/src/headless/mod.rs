@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use hdrhistogram::Histogram;
 
 use crate::engine::integrate::StepReport;
-use crate::engine::scene::limits::MAX_COORDINATE_M;
+use crate::engine::scene::limits::{MAX_COORDINATE_M, out_of_place};
 use crate::engine::simulation::Simulation;
 
 /// The longest run, simulated seconds (`--seconds`, and a trajectory's last
@@ -42,18 +42,15 @@ pub struct RunSummary {
 }
 
 /// What is wrong with `sim` after a tick, if anything, by the rule a served session
-/// halts on (`session/halt.rs`): a vertex position that is not finite or beyond
-/// ±[`MAX_COORDINATE_M`] (a scene's mesh must lie within it, so tissue found beyond it
-/// was thrown there by the simulation), or an instrument's reaction that is not
-/// finite. A pass over the positions, nothing allocated unless there is a fault.
+/// halts on (`session/halt.rs`): a vertex position [`out_of_place`] (not finite or
+/// beyond ±[`MAX_COORDINATE_M`]), or an instrument's reaction that is not finite. A pass over the positions, nothing allocated unless there is a fault.
 pub fn fault(sim: &Simulation) -> Option<String> {
-    let out = |c: f64| !c.is_finite() || c.abs() > MAX_COORDINATE_M;
     if let Some((v, x)) = sim
         .state
         .x
         .iter()
         .enumerate()
-        .find(|(_, x)| x.iter().any(|&c| out(c)))
+        .find(|(_, x)| x.iter().any(|&c| out_of_place(c)))
     {
         return Some(format!(
             "vertex {v} is at ({:.3e}, {:.3e}, {:.3e}) m, beyond the ±{MAX_COORDINATE_M} m a \

@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use laparo_proto::v1;
 
 use super::mechanics::Mechanics;
-use crate::engine::scene::limits::MAX_COORDINATE_M;
+use crate::engine::scene::limits::{MAX_COORDINATE_M, out_of_place};
 
 /// How often a halted session looks at its stop flag and idle timeout.
 const HALTED_POLL: Duration = Duration::from_millis(20);
@@ -31,11 +31,7 @@ const HALTED_POLL: Duration = Duration::from_millis(20);
 /// surface position (packed f32 triples) or an instrument's local model or force; or
 /// the first surface position beyond ±[`MAX_COORDINATE_M`].
 pub fn first_fault(surface: &[f32], instruments: &[v1::InstrumentState]) -> Option<String> {
-    let bound = MAX_COORDINATE_M as f32;
-    if let Some(i) = surface
-        .iter()
-        .position(|v| !v.is_finite() || v.abs() > bound)
-    {
+    if let Some(i) = surface.iter().position(|&v| out_of_place(f64::from(v))) {
         let beyond = if surface[i].is_finite() {
             format!(
                 ", beyond the ±{MAX_COORDINATE_M} m a scene's mesh must lie in: the tissue \

@@ -38,6 +38,14 @@ pub const MAX_DENSITY: f64 = 1e5;
 /// operating field is under a metre; 100 m still admits a mesh left in SOFA's units
 /// (about 6.5 "metres" across) and bounds every length a tick forms.
 pub const MAX_COORDINATE_M: f64 = 100.0;
+
+/// Whether a coordinate is out of any physical place: not finite, or beyond
+/// ±[`MAX_COORDINATE_M`]. A mesh is refused unless it lies within that range, so tissue
+/// found beyond it was thrown there by the simulation; both a served session
+/// (`session/halt.rs`) and a headless run stop on it.
+pub fn out_of_place(c: f64) -> bool {
+    !c.is_finite() || c.abs() > MAX_COORDINATE_M
+}
 /// Smallest size (bounding-box diagonal) of the scaled mesh, m: 1 mm. A smaller body is
 /// a scale mistake, and its volumes (`L³`) head for underflow.
 pub const MIN_MESH_SIZE_M: f64 = 1e-3;
