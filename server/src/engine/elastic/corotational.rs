@@ -435,6 +435,24 @@ impl Corotated {
         *self.rotation[e].to_rotation_matrix().matrix()
     }
 
+    /// The largest [`twist_ratio`](super::twist::twist_ratio) over the elements at
+    /// `x`, each rotation extracted there (warm-started, and kept for the next
+    /// extraction): how far the turning of the rotations raises the stiffness
+    /// above the linear bound, for the explicit step. One pass over the elements,
+    /// nothing allocated.
+    pub fn twist_ratio(&mut self, model: &ElasticModel, x: &[Point3<f64>]) -> f64 {
+        let mut worst: f64 = 0.0;
+        for (e, q) in model.elements.iter().zip(&mut self.rotation) {
+            let f = e.deformation_gradient(x);
+            extract_rotation(&f, q, WARM_ITERATIONS);
+            let ratio = super::twist::twist_ratio(e, q.to_rotation_matrix().matrix(), &f);
+            if ratio > worst {
+                worst = ratio;
+            }
+        }
+        worst
+    }
+
     /// The rotation element `e`'s share of `K̂` was last assembled with.
     pub fn assembled_rotation(&self, e: usize) -> Matrix3<f64> {
         *self.assembled[e].to_rotation_matrix().matrix()

@@ -20,6 +20,7 @@ pub mod corotational;
 pub mod parts;
 pub mod rotation;
 mod stress;
+pub mod twist;
 
 pub use assemble::{shape_gradients, tet_stiffness};
 pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
@@ -546,6 +547,8 @@ mod tests_f32;
 mod tests_shared;
 #[cfg(test)]
 mod tests_tangent;
+#[cfg(test)]
+mod tests_twist;
 
 /// A stored block of a [`BlockMatrix`] as its product reads it: `K u` and `Kᵀ u` in
 /// f64, whatever the block is stored in. An f32 block is widened exactly (every
