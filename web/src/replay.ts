@@ -1,8 +1,9 @@
 // The replay page: a recording through Recordings.Replay — play, pause, speed,
 // seek, recorded or re-simulated — drawn as the live view draws, with |force|
 // over time beside it. Pausing ends the stream; playing again (or seeking, or
-// changing the speed or mode) opens a new one from the time reached. A lost
-// connection is retried with the live view's backoff, from the time reached.
+// changing the speed or mode) opens a new one from the time reached. Seeking
+// while paused opens one only for the frame at the time sought, and stays paused.
+// A lost connection is retried with the live view's backoff, from the time reached.
 import { Code, failure, recordings } from "./api";
 import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
 import { ReplayMode } from "./gen/laparo/v1/recording_pb";
@@ -81,14 +82,29 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
   // One listener for the page's signal, whatever the number of streams started.
   signal.addEventListener("abort", () => stream?.abort());
 
-  function start(from: number): void {
+  /** Plays from `from`; or, `still`, shows the frame at `from` (the surface, the
+   * instruments, the gauges and the time) and ends the stream: a seek while
+   * paused stays paused. */
+  function start(from: number, still = false): void {
     stream?.abort();
     const mine = new AbortController();
     stream = mine;
-    page.dataset.state = "playing";
+    page.dataset.state = still ? "paused" : "playing";
     // The time of the stream's first frame: where a seek landed.
     page.dataset.startedAt = "";
-    setConnection("connecting");
+    setConnection("connecting", still ? "seeking" : "");
+    /** Still: the tick of the frame shown, and the instruments whose state at
+     * that tick has come (the server sends the tick at the offset at once, its
+     * surface first; anything of a later tick means it is all there). */
+    let stillTick: bigint | null = null;
+    let names: string[] = [];
+    const stillStates = new Set<string>();
+    const shown = () => {
+      if (mine !== stream) return;
+      mine.abort();
+      stream = null;
+      setConnection("idle", "paused");
+    };
     void (async () => {
       // A lost connection (the server restarting, say) is retried as the live
       // view does, from the time reached.
@@ -107,26 +123,39 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
             const k = m.kind;
             if (k.case === "scene") {
               if (!haveScene) view.setScene(k.value);
-              gauges.set(k.value.instruments.map((i) => i.name));
+              names = k.value.instruments.map((i) => i.name);
+              gauges.set(names);
               haveScene = true;
               attempt = 0;
               // Playing again: what went wrong before is over.
               delete page.dataset.error;
-              page.dataset.state = "playing";
               notice(null);
-              setConnection("live");
               refreshDuration();
+              if (still) continue;
+              page.dataset.state = "playing";
+              setConnection("live");
             } else if (k.case === "surfaceFrame") {
+              if (still) {
+                if (stillTick !== null) return shown();
+                stillTick = k.value.tick;
+              }
               surface = k.value;
               at = k.value.simTimeS;
               // Past a duration listed while the recording was shorter.
               if (at > duration) setDuration(at);
               if (!page.dataset.startedAt) page.dataset.startedAt = at.toFixed(4);
             } else if (k.case === "instrumentState") {
+              if (still && stillTick !== null && k.value.tick !== stillTick) return shown();
               states.set(k.value.instrument, k.value);
               plot.add(k.value.instrument, k.value.simTimeS, k.value.force?.magnitudeN ?? 0);
+              if (still && stillTick !== null) {
+                stillStates.add(k.value.instrument);
+                if (names.every((n) => stillStates.has(n))) return shown();
+              }
             }
           }
+          // A seek while paused to the recording's end: its last frame is shown.
+          if (still) return shown();
           if (mine === stream) {
             page.dataset.state = "ended";
             setConnection("ended", "the recording played to its end");
@@ -144,8 +173,9 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
             notice(`replay: ${f.text}`);
             return;
           }
-          // From the time reached, if this stream reached any.
-          if (page.dataset.startedAt) from = at;
+          // From the time reached, if this stream reached any (still: the
+          // frame sought, whose surface may have come without its states).
+          if (page.dataset.startedAt && !still) from = at;
           const wait = backoff(attempt);
           const why = slot ? "waiting for a replay slot" : f.text;
           setConnection("reconnecting", `${why}; again in ${(wait / 1000).toFixed(1)} s`);
@@ -165,10 +195,12 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     setConnection("idle", "paused");
   });
   const restart = () => {
+    if (page.dataset.state === "paused") return;
     if (stream) start(at);
   };
   speed.addEventListener("change", restart);
-  resim.addEventListener("change", restart);
+  // Paused, the frame shown is drawn again as the mode chosen makes it.
+  resim.addEventListener("change", () => (page.dataset.state === "paused" ? start(at, true) : restart()));
   /** The user holds the seek bar: the frame loop leaves its value alone until
    * they let go. Not its focus, which stays after a click and would stop the
    * bar following the playback. */
@@ -179,7 +211,8 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     seeking = false;
     at = Number(seek.value);
     plot.clearAfter(at);
-    start(at);
+    // Paused, the frame at the time sought is shown and the replay stays paused.
+    start(at, page.dataset.state === "paused");
   });
 
   let shownAt = -Infinity;

@@ -227,9 +227,14 @@ try {
   const still = await driver.$eval("#replay", (e) => e.dataset.time);
   check(paused === still, `paused at ${paused} s, then at ${still} s`);
   console.log(`ok replay paused at ${paused} s stays there`);
-  // Sought, it lands at the time asked (within a frame of the recording).
-  step = "replay: seek";
-  const target = await driver.$eval("#seek", (e) => Math.round(Number(e.max) * 50) / 100);
+  // Sought while paused, it shows the frame at the time asked (within a frame of
+  // the recording) and stays paused: the time shown stands still there, and no
+  // stream is left open.
+  step = "replay: seek while paused";
+  // Halfway, or a tenth of the way when paused near halfway: away from the time paused at.
+  const seekMax = await driver.$eval("#seek", (e) => Number(e.max));
+  const half = Math.round(seekMax * 50) / 100;
+  const target = Math.abs(half - Number(paused)) > seekMax / 5 ? half : Math.round(seekMax * 10) / 100;
   await driver.$eval(
     "#seek",
     (e, t) => {
@@ -241,7 +246,32 @@ try {
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.startedAt, null, { timeout: T });
   const landed = await driver.$eval("#replay", (e) => Number(e.dataset.startedAt));
   check(Math.abs(landed - target) <= 1 / 30, `sought ${target} s, landed at ${landed} s`);
-  console.log(`ok replay sought ${target} s, landed at ${landed} s`);
+  await driver.waitForFunction(() => document.querySelector("#connection")?.dataset.state === "idle", null, { timeout: T });
+  await driver.waitForTimeout(300);
+  const shownAt = await driver.evaluate(() => ({
+    state: document.querySelector("#replay").dataset.state,
+    time: document.querySelector("#replay").dataset.time,
+    text: document.querySelector("#time").textContent,
+  }));
+  check(shownAt.state === "paused", `sought while paused, the replay went ${shownAt.state}`);
+  check(Math.abs(Number(shownAt.time) - target) <= 1 / 30, `sought ${target} s while paused, the page shows ${shownAt.time} s`);
+  check(shownAt.text.startsWith(`${Number(shownAt.time).toFixed(2)} /`), `the time text says "${shownAt.text}" at ${shownAt.time} s`);
+  await driver.waitForTimeout(1000);
+  const stays = await driver.evaluate(() => ({
+    state: document.querySelector("#replay").dataset.state,
+    time: document.querySelector("#replay").dataset.time,
+    connection: document.querySelector("#connection").dataset.state,
+  }));
+  check(stays.state === "paused" && stays.time === shownAt.time && stays.connection === "idle", `a second after the seek: ${JSON.stringify(stays)}, shown at ${shownAt.time} s`);
+  console.log(`ok replay paused at ${paused} s, sought ${target} s: shows ${shownAt.text}, still paused a second later`);
+  // Played from there, it goes on from the time sought.
+  step = "replay: play after the seek";
+  await driver.click("#play");
+  await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "playing", null, { timeout: T });
+  await driver.waitForFunction((t) => Number(document.querySelector("#replay")?.dataset.time) > t + 0.1, Number(shownAt.time), { timeout: T });
+  const playedFrom = await driver.$eval("#replay", (e) => Number(e.dataset.startedAt));
+  check(Math.abs(playedFrom - Number(shownAt.time)) <= 1 / 30, `paused at ${shownAt.time} s, played from ${playedFrom} s`);
+  console.log(`ok replay played on from ${playedFrom} s`);
   // Clicked, the seek bar keeps the focus and goes on following the playback.
   step = "replay: seek bar follows after a click";
   await driver.click("#seek");
