@@ -19,6 +19,7 @@ import { backoff, clearNotice, el, notice, setConnection, sleep } from "./status
 import { SceneView } from "./view/scene3d";
 import { Gauges } from "./view/gauges";
 import { FrameClock } from "./view/frameclock";
+import { clientName, DEFAULT_NAME, givenName, MAX_NAME_BYTES, setGivenName } from "./name";
 
 export interface LiveOptions {
   sessionId: string;
@@ -59,11 +60,21 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
   const gauges = new Gauges();
   const events = el("ul", { id: "events" });
   const scopeButton = el("button", { id: "scope", type: "button" }, "laparoscope");
+  // The name the station joins with, shown in the sessions table: changed, the
+  // station joins again under it, the instruments kept where they are.
+  const nameInput = el("input", {
+    id: "client-name",
+    type: "text",
+    placeholder: DEFAULT_NAME,
+    title: `the name this station shows in the sessions table, kept in this browser (empty: "${DEFAULT_NAME}"); changing it joins again under the new name, the instruments kept where they are; over ${MAX_NAME_BYTES} bytes it is cut to fit`,
+  });
+  nameInput.value = givenName();
   const side = el(
     "div",
     { class: "side" },
     el("h3", { title: driving ? options.instruments.join(", ") : "" }, driving ? `driving ${options.instruments.join(", ")}` : "observing"),
     el("p", { title: options.sessionId }, `session ${options.sessionId}`),
+    driving ? el("p", {}, el("label", { class: "name" }, "name ", nameInput)) : "",
     left.length > 0
       ? el("p", { id: "not-driven" }, `not claimed: ${left.join(", ")} (a page drives ${MAX_DRIVEN} instruments; open another page for the rest)`)
       : "",
@@ -397,6 +408,18 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
   }
   requestAnimationFrame(frame);
 
+  /** The current join (Station.Attach), ended to join again under a new name. */
+  let join: AbortController | null = null;
+  let renaming = false;
+  nameInput.addEventListener("change", () => {
+    const before = clientName();
+    // What is kept is what is sent: trimmed, and cut to the server's limit.
+    nameInput.value = setGivenName(nameInput.value);
+    if (clientName() === before || !join) return;
+    renaming = true;
+    join.abort();
+  });
+
   void (async () => {
     for (let attempt = 0; !signal.aborted; attempt++) {
       setConnection(attempt === 0 ? "connecting" : "reconnecting");
@@ -411,9 +434,14 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
           break;
         }
         if (driving) {
+          const mine = new AbortController();
+          join = mine;
+          const stop = () => mine.abort();
+          signal.addEventListener("abort", stop, { once: true });
+          mine.signal.addEventListener("abort", () => signal.removeEventListener("abort", stop), { once: true });
           const stream = station.attach(
-            { sessionId: options.sessionId, role: Role.TRAINEE, instruments: options.instruments, clientName: "browser console" },
-            { signal },
+            { sessionId: options.sessionId, role: Role.TRAINEE, instruments: options.instruments, clientName: clientName() },
+            { signal: mine.signal },
           );
           for await (const m of stream) {
             if (m.kind.case === "attached") {
@@ -478,8 +506,16 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
       } catch (e) {
         active = false;
         handle = "";
+        join?.abort();
+        join = null;
         if (signal.aborted) return;
         if (closed) break;
+        if (renaming) {
+          // Ended to join again under the name just given: at once, not as a failure.
+          renaming = false;
+          attempt = -1;
+          continue;
+        }
         const f = e instanceof Error && e.message === "the stream ended" ? { text: "the stream ended", retry: true, auth: false, code: undefined } : failure(e);
         // The server ends a closing session's streams with UNAVAILABLE and
         // "session closed: reason", possibly before the SESSION_CLOSING event.

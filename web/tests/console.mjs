@@ -435,6 +435,46 @@ try {
   await driver.waitForSelector(`#sessions tr[data-session="${longSession}"]`, { state: "detached", timeout: T });
   console.log(`ok a 250-character client name keeps the sessions table ${widths.table} px wide in a ${widths.window} px window`);
 
+  // A browser station joins under the name given in its page (the sessions
+  // table shows it), kept across a reload; a name over the server's 256 bytes is
+  // cut at a character's boundary; emptied, it is "browser console" again.
+  step = "station name";
+  const namer = await context.newPage();
+  watch(namer, "namer", problems);
+  await namer.goto(`${url}#/`);
+  await useToken(namer, token);
+  await namer.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=right`);
+  await liveState(namer, "live");
+  const listed = (name) =>
+    driver
+      .waitForFunction(([s, n]) => document.querySelector(`#sessions tr[data-session="${s}"]`)?.textContent.includes(` ${n} (right)`), [padSession, name], { timeout: T })
+      .catch(async () => {
+        throw new Error(`${step}: the sessions table never listed "${name}" for the right instrument: ${await driver.$eval(`#sessions tr[data-session="${padSession}"]`, (e) => e.textContent).catch(() => "no row")}`);
+      });
+  const rename = async (name) => {
+    await namer.fill("#client-name", name);
+    await namer.press("#client-name", "Enter");
+  };
+  await listed("browser console");
+  await rename("trainee Zoë");
+  await listed("trainee Zoë");
+  await liveState(namer, "live");
+  await namer.reload();
+  await liveState(namer, "live");
+  const reloaded = await namer.$eval("#client-name", (e) => e.value);
+  check(reloaded === "trainee Zoë", `after a reload the name field says "${reloaded}"`);
+  await listed("trainee Zoë");
+  console.log(`ok a station named "trainee Zoë" in its page is listed so, after a reload too`);
+  step = "station name: cut to fit";
+  await rename("é".repeat(150));
+  const cut = await namer.$eval("#client-name", (e) => e.value);
+  check(cut === "é".repeat(128), `a name of 150 "é" (300 bytes) became ${cut.length} characters, ${new TextEncoder().encode(cut).length} bytes`);
+  await listed(cut);
+  await rename("");
+  await listed("browser console");
+  console.log(`ok a 300-byte name was cut to ${new TextEncoder().encode(cut).length} bytes (${cut.length} "é") and listed; emptied, "browser console" again`);
+  await namer.close();
+
   // A malformed address is said, over the sessions list.
   step = "malformed address";
   await driver.goto(`${url}#/live/%`);
