@@ -436,16 +436,22 @@ impl Corotated {
     }
 
     /// The largest [`twist_ratio`](super::twist::twist_ratio) over the elements at
-    /// `x`, each rotation extracted there (warm-started, and kept for the next
-    /// extraction): how far the turning of the rotations raises the stiffness
-    /// above the linear bound, for the explicit step. One pass over the elements,
-    /// nothing allocated.
+    /// `x` if above 1, else at most 1, each rotation extracted there (warm-started,
+    /// and kept for the next extraction): how far the turning of the rotations
+    /// raises the stiffness above the linear bound, for the explicit step. One pass
+    /// over the elements, nothing allocated.
     pub fn twist_ratio(&mut self, model: &ElasticModel, x: &[Point3<f64>]) -> f64 {
         let mut worst: f64 = 0.0;
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
             extract_rotation(&f, q, WARM_ITERATIONS);
-            let ratio = super::twist::twist_ratio(e, q.to_rotation_matrix().matrix(), &f);
+            let r = q.to_rotation_matrix();
+            // Only a ratio above 1 changes the step: the cheap bound rules most
+            // elements out before the eigenvalues are taken.
+            if super::twist::twist_ratio_bound(e, r.matrix(), &f) <= worst.max(1.0) {
+                continue;
+            }
+            let ratio = super::twist::twist_ratio(e, r.matrix(), &f);
             if ratio > worst {
                 worst = ratio;
             }

@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use super::corotational::Element;
 use super::rotation::{COLD_ITERATIONS, extract_rotation};
-use super::twist::twist_ratio;
+use super::twist::{twist_ratio, twist_ratio_bound};
 
 /// An element of Lamé coefficients `λ`, `μ` (only they matter here).
 fn element(lambda: f64, mu: f64) -> Element {
@@ -102,4 +102,33 @@ fn an_inverted_element_passes_the_linear_bound_as_its_energy_says() {
     let ratio = twist_ratio(&e, &polar(&f), &f);
     assert!((ratio - largest / (lambda + 2.0 * mu)).abs() <= 1e-9 * ratio);
     assert!(ratio > 1.0, "inverted at ν 0.45: {ratio}");
+}
+
+#[test]
+fn the_cheap_bound_is_never_below_the_ratio() {
+    // Turned, stretched, sheared and inverted gradients of every kind.
+    for nu in [0.3, 0.45, 0.499] {
+        let (lambda, mu) = lame(nu);
+        let e = element(lambda, mu);
+        for k in 0..2000 {
+            let x = k as f64;
+            let f = Matrix3::new(
+                1.0 + 0.6 * (0.37 * x).sin(),
+                0.4 * (1.3 * x).cos(),
+                0.3 * (0.71 * x).sin(),
+                0.3 * (2.1 * x).sin(),
+                1.0 + 0.7 * (0.53 * x).cos(),
+                0.4 * (0.9 * x).cos(),
+                0.2 * (1.7 * x).cos(),
+                0.3 * (0.43 * x).sin(),
+                0.9 * (0.29 * x).sin(),
+            );
+            let r = polar(&f);
+            let (ratio, bound) = (twist_ratio(&e, &r, &f), twist_ratio_bound(&e, &r, &f));
+            assert!(
+                bound >= ratio * (1.0 - 1e-12) || ratio.is_nan(),
+                "ν {nu}, case {k}: bound {bound} under the ratio {ratio}"
+            );
+        }
+    }
 }

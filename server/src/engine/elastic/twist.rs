@@ -3,10 +3,10 @@
 //!
 //! The explicit step is stable for `h ω_max < 2`, and its substep count comes from a
 //! bound `ω̂` of the linear stiffness `K` (Gershgorin, see
-//! [`ElasticModel::max_eigenvalue_bound`]). The rotated stiffness `R K Rᵀ` has the
-//! same spectrum as `K` at every rotation, but the exact corotational force
-//! `R K (Rᵀ x − X)` also turns with `x`, and its Jacobian has a term from the turning
-//! of `R` that `K` does not bound.
+//! [`max_eigenvalue_bound`](super::ElasticModel::max_eigenvalue_bound)). The rotated
+//! stiffness `R K Rᵀ` has the same spectrum as `K` at every rotation, but the exact
+//! corotational force `R K (Rᵀ x − X)` also turns with `x`, and its Jacobian has a
+//! term from the turning of `R` that `K` does not bound.
 //!
 //! Per element the corotated energy is `ψ(F) = ½ ε : C : ε` with `ε = S − I`,
 //! `S = Rᵀ F` the (signed) stretch of the polar decomposition. In the principal frame
@@ -46,11 +46,9 @@ use super::corotational::Element;
 /// module notes). 0 at rest and under any rotation; `∞` for a stressed element
 /// with two stretches summing to zero.
 pub fn twist_ratio(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
-    let a = r.transpose() * f;
-    let stretch = (0.5 * (a + a.transpose())).symmetric_eigenvalues();
+    let stretch = stretch(r, f).symmetric_eigenvalues();
     let trace = stretch.sum() - 3.0;
     let stress = stretch.map(|s| e.lambda * trace + 2.0 * e.mu * (s - 1.0));
-    let modulus = e.lambda + 2.0 * e.mu;
     let mut worst: f64 = 0.0;
     for (i, j) in [(0, 1), (0, 2), (1, 2)] {
         let twist = (stress[i] + stress[j]) / (stretch[i] + stretch[j]);
@@ -59,5 +57,32 @@ pub fn twist_ratio(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
             worst = twist.abs();
         }
     }
-    worst / modulus
+    worst / (e.lambda + 2.0 * e.mu)
+}
+
+/// An upper bound of [`twist_ratio`] from the entries of the stretch alone, without
+/// its eigenvalues (the symmetric eigensolver costs more than the rest of the pass):
+/// by Gershgorin every stretch lies within `ρ_k = Σ_{l≠k} |S_kl|` of some `S_kk`, so
+/// `σ_i + σ_j ≥ 2 min_k (S_kk − ρ_k)` and `|σ_k − 1| ≤ max_k (|S_kk − 1| + ρ_k)`, while
+/// `tr ε = tr S − 3` is exact; then `|s_i + s_j| ≤ 2 (λ |tr ε| + 2μ max |σ_k − 1|)`.
+/// `∞` when the lower end is not positive (the bound says nothing there).
+pub fn twist_ratio_bound(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
+    let s = stretch(r, f);
+    let (mut low, mut far) = (f64::INFINITY, 0.0f64);
+    for k in 0..3 {
+        let radius: f64 = (0..3).filter(|&l| l != k).map(|l| s[(k, l)].abs()).sum();
+        low = low.min(s[(k, k)] - radius);
+        far = far.max((s[(k, k)] - 1.0).abs() + radius);
+    }
+    if low <= 0.0 {
+        return f64::INFINITY;
+    }
+    let stress = e.lambda * (s.trace() - 3.0).abs() + 2.0 * e.mu * far;
+    stress / (low * (e.lambda + 2.0 * e.mu))
+}
+
+/// The symmetric stretch `sym(Rᵀ F)` (exactly `Rᵀ F` for the polar rotation).
+fn stretch(r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
+    let a = r.transpose() * f;
+    0.5 * (a + a.transpose())
 }
