@@ -8,6 +8,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use super::corotational::Element;
 use super::rotation::{COLD_ITERATIONS, extract_rotation};
 use super::twist::{twist_ratio, twist_ratio_bound};
+use crate::engine::material::Material;
 
 /// An element of Lamé coefficients `λ`, `μ` (only they matter here).
 fn element(lambda: f64, mu: f64) -> Element {
@@ -23,7 +24,12 @@ fn element(lambda: f64, mu: f64) -> Element {
 
 /// Lamé coefficients of E = 1 and Poisson ratio `nu`.
 fn lame(nu: f64) -> (f64, f64) {
-    (nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), 0.5 / (1.0 + nu))
+    Material {
+        young_modulus: 1.0,
+        poisson_ratio: nu,
+        density: 1.0,
+    }
+    .lame()
 }
 
 fn polar(f: &Matrix3<f64>) -> Matrix3<f64> {
