@@ -51,6 +51,7 @@ use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
 use super::parts::Parts;
 use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation, polar};
+use super::twist;
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 use crate::engine::workers::{Disjoint, Workers, share};
@@ -445,13 +446,13 @@ impl Corotated {
         for (e, q) in model.elements.iter().zip(&mut self.rotation) {
             let f = e.deformation_gradient(x);
             extract_rotation(&f, q, WARM_ITERATIONS);
-            let r = q.to_rotation_matrix();
+            let s = twist::stretch(q.to_rotation_matrix().matrix(), &f);
             // Only a ratio above 1 changes the step: the cheap bound rules most
             // elements out before the eigenvalues are taken.
-            if super::twist::twist_ratio_bound(e, r.matrix(), &f) <= worst.max(1.0) {
+            if twist::twist_ratio_bound(e, &s) <= worst.max(1.0) {
                 continue;
             }
-            let ratio = super::twist::twist_ratio(e, r.matrix(), &f);
+            let ratio = twist::twist_ratio(e, &s);
             if ratio > worst {
                 worst = ratio;
             }

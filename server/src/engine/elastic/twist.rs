@@ -41,12 +41,12 @@ use nalgebra::Matrix3;
 
 use super::corotational::Element;
 
-/// The largest twist eigenvalue of element `e` at deformation gradient `f` with its
-/// polar rotation `r`, over the modulus `λ + 2μ` of its stiffest wave (see the
-/// module notes). 0 at rest and under any rotation; `∞` for a stressed element
-/// with two stretches summing to zero.
-pub fn twist_ratio(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
-    let stretch = stretch(r, f).symmetric_eigenvalues();
+/// The largest twist eigenvalue of element `e` with stretch `s` ([`stretch`]), over
+/// the modulus `λ + 2μ` of its stiffest wave (see the module notes). 0 at rest and
+/// under any rotation; `∞` for a stressed element with two stretches summing to
+/// zero.
+pub fn twist_ratio(e: &Element, s: &Matrix3<f64>) -> f64 {
+    let stretch = s.symmetric_eigenvalues();
     let trace = stretch.sum() - 3.0;
     let stress = stretch.map(|s| e.lambda * trace + 2.0 * e.mu * (s - 1.0));
     let mut worst: f64 = 0.0;
@@ -66,8 +66,7 @@ pub fn twist_ratio(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
 /// `σ_i + σ_j ≥ 2 min_k (S_kk − ρ_k)` and `|σ_k − 1| ≤ max_k (|S_kk − 1| + ρ_k)`, while
 /// `tr ε = tr S − 3` is exact; then `|s_i + s_j| ≤ 2 (λ |tr ε| + 2μ max |σ_k − 1|)`.
 /// `∞` when the lower end is not positive (the bound says nothing there).
-pub fn twist_ratio_bound(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64 {
-    let s = stretch(r, f);
+pub fn twist_ratio_bound(e: &Element, s: &Matrix3<f64>) -> f64 {
     let (mut low, mut far) = (f64::INFINITY, 0.0f64);
     for k in 0..3 {
         let radius: f64 = (0..3).filter(|&l| l != k).map(|l| s[(k, l)].abs()).sum();
@@ -81,8 +80,9 @@ pub fn twist_ratio_bound(e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) -> f64
     stress / (low * (e.lambda + 2.0 * e.mu))
 }
 
-/// The symmetric stretch `sym(Rᵀ F)` (exactly `Rᵀ F` for the polar rotation).
-fn stretch(r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
+/// The symmetric stretch `S = sym(Rᵀ F)` of deformation gradient `f` with its polar
+/// rotation `r` (exactly `Rᵀ F` for the polar rotation).
+pub fn stretch(r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
     let a = r.transpose() * f;
     0.5 * (a + a.transpose())
 }
