@@ -6,8 +6,9 @@
 //! (liver-coloured pixels where it is); the session's close said on the
 //! observer's page; the held vertices drawn, live and in a replay; a replay
 //! paused (its time stands still), sought (it lands at the time asked) and
-//! played to its end; a wrong token refused on the page; the server stopped
-//! and started again on its port (the page says so and comes back by itself);
+//! played to its end, after which a change of speed plays nothing and a seek
+//! shows the frame sought and stays paused; a wrong token refused on the page;
+//! the server stopped and started again on its port (the page says so and comes back by itself);
 //! a gamepad driving an instrument and its vibration growing with the force; an
 //! instrument another station holds waited for and taken once let go; a live
 //! view left releasing its WebGL context; a page drawing no frames (a hidden

@@ -2,7 +2,8 @@
 // seek, recorded or re-simulated — drawn as the live view draws, with |force|
 // over time beside it. Pausing ends the stream; playing again (or seeking, or
 // changing the speed or mode) opens a new one from the time reached. Seeking
-// while paused opens one only for the frame at the time sought, and stays paused.
+// while paused, or after the end, opens one only for the frame at the time
+// sought, and stays paused; a speed changed then is kept for the next play.
 // A lost connection is retried with the live view's backoff, from the time reached.
 import { Code, failure, recordings } from "./api";
 import type { InstrumentState, SurfaceFrame } from "./gen/laparo/v1/frame_pb";
@@ -157,6 +158,7 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
           // A seek while paused to the recording's end: its last frame is shown.
           if (still) return shown();
           if (mine === stream) {
+            stream = null;
             page.dataset.state = "ended";
             setConnection("ended", "the recording played to its end");
             refreshDuration();
@@ -187,7 +189,13 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     })();
   }
 
-  play.addEventListener("click", () => start(at >= duration && duration > 0 ? 0 : at));
+  /** Nothing plays: paused, or played to the end. A seek shows the frame
+   * sought and stays so; a speed changed is kept for the next play. */
+  const standing = () => page.dataset.state === "paused" || page.dataset.state === "ended";
+  // Played to the end (and not sought since), play starts again from the
+  // beginning, as a media player does: playing on from the end would end at
+  // once. After a seek (the end's included) it plays from the time sought.
+  play.addEventListener("click", () => start(page.dataset.state === "ended" || (at >= duration && duration > 0) ? 0 : at));
   pause.addEventListener("click", () => {
     stream?.abort();
     stream = null;
@@ -195,11 +203,12 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     setConnection("idle", "paused");
   });
   const restart = () => {
-    if (page.dataset.state === "paused") return;
+    if (standing()) return;
     if (stream) start(at);
   };
   speed.addEventListener("change", restart);
-  // Paused, the frame shown is drawn again as the mode chosen makes it.
+  // Paused, the frame shown is drawn again as the mode chosen makes it; ended,
+  // the mode is kept for the next play, as the speed is.
   resim.addEventListener("change", () => (page.dataset.state === "paused" ? start(at, true) : restart()));
   /** The user holds the seek bar: the frame loop leaves its value alone until
    * they let go. Not its focus, which stays after a click and would stop the
@@ -211,8 +220,9 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
     seeking = false;
     at = Number(seek.value);
     plot.clearAfter(at);
-    // Paused, the frame at the time sought is shown and the replay stays paused.
-    start(at, page.dataset.state === "paused");
+    // Paused or ended, the frame at the time sought is shown and the replay
+    // stays paused.
+    start(at, standing());
   });
 
   let shownAt = -Infinity;

@@ -290,6 +290,70 @@ try {
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "ended", null, { timeout: 60_000 });
   await driver.screenshot({ path: `${out}/replay.png` });
   console.log(`ok replay of ${file} played to its end at ${await driver.$eval("#replay", (e) => e.dataset.time)} s`);
+  // Played to its end, a change of speed is kept for the next play and plays
+  // nothing; a seek shows the frame at the time sought and stays paused; play
+  // then plays from there, at the speed chosen.
+  step = "replay: speed after the end";
+  const endedAt = await driver.$eval("#replay", (e) => e.dataset.time);
+  // Every state the replay goes through from here, as it goes.
+  await driver.evaluate(() => {
+    const r = document.querySelector("#replay");
+    window.__replayStates = [];
+    new MutationObserver(() => window.__replayStates.push(r.dataset.state)).observe(r, { attributes: true, attributeFilter: ["data-state"] });
+  });
+  await driver.selectOption("#speed", "0.25");
+  await driver.waitForTimeout(1000);
+  const afterSpeed = await driver.evaluate(() => ({
+    states: window.__replayStates,
+    time: document.querySelector("#replay").dataset.time,
+    connection: document.querySelector("#connection").dataset.state,
+  }));
+  check(
+    afterSpeed.states.length === 0 && afterSpeed.time === endedAt && afterSpeed.connection === "ended",
+    `the speed changed after the end (at ${endedAt} s): went ${afterSpeed.states.join(", ") || "nowhere"}, at ${afterSpeed.time} s, connection ${afterSpeed.connection}`,
+  );
+  console.log(`ok a speed changed after the end (at ${endedAt} s) plays nothing`);
+  step = "replay: seek after the end";
+  await driver.evaluate(() => (window.__replayStates = []));
+  const endMax = await driver.$eval("#seek", (e) => Number(e.max));
+  const afterEnd = Math.round(endMax * 30) / 100;
+  await driver.$eval(
+    "#seek",
+    (e, t) => {
+      e.value = String(t);
+      e.dispatchEvent(new Event("change"));
+    },
+    afterEnd,
+  );
+  await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.startedAt, null, { timeout: T });
+  // The frame shown, the stream ends (the check below says if it did not).
+  await driver.waitForFunction(() => document.querySelector("#connection")?.dataset.state === "idle", null, { timeout: 5000 }).catch(() => {});
+  await driver.waitForTimeout(300);
+  const endSought = await driver.$eval("#replay", (e) => e.dataset.time);
+  await driver.waitForTimeout(1000);
+  const endStays = await driver.evaluate(() => ({
+    states: window.__replayStates,
+    time: document.querySelector("#replay").dataset.time,
+    connection: document.querySelector("#connection").dataset.state,
+  }));
+  check(
+    endStays.states.every((s) => s === "paused") && endStays.time === endSought && endStays.connection === "idle",
+    `sought ${afterEnd} s after the end: went ${endStays.states.join(", ")}, at ${endSought} s then ${endStays.time} s a second later, connection ${endStays.connection}`,
+  );
+  check(Math.abs(Number(endSought) - afterEnd) <= 1 / 30, `sought ${afterEnd} s after the end, the page shows ${endSought} s`);
+  console.log(`ok a seek after the end to ${afterEnd} s shows ${endSought} s and stays paused`);
+  step = "replay: play after a seek after the end";
+  await driver.click("#play");
+  await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "playing", null, { timeout: T });
+  await driver.waitForFunction((t) => Number(document.querySelector("#replay")?.dataset.time) > t + 0.05, Number(endSought), { timeout: T });
+  const resumed = await driver.evaluate(() => ({ from: Number(document.querySelector("#replay").dataset.startedAt), time: Number(document.querySelector("#replay").dataset.time), t: performance.now() }));
+  check(Math.abs(resumed.from - Number(endSought)) <= 1 / 30, `sought ${endSought} s after the end, played from ${resumed.from} s`);
+  await driver.waitForTimeout(1000);
+  const later = await driver.evaluate(() => ({ time: Number(document.querySelector("#replay").dataset.time), t: performance.now() }));
+  // At 0.25×, about a quarter of the wall time passed; at the 10× played before, ten times it.
+  const rate = (later.time - resumed.time) / ((later.t - resumed.t) / 1000);
+  check(rate < 1, `played after the end at ${rate.toFixed(2)}× with 0.25× chosen after the end`);
+  console.log(`ok played from ${resumed.from} s at the speed chosen after the end (${rate.toFixed(2)}× for 0.25×)`);
 
   // A recording cut short (a copy without its end, as a stopped server leaves
   // one) is listed unfinished, with how to recover it instead of a replay link.
