@@ -66,7 +66,7 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
     id: "client-name",
     type: "text",
     placeholder: DEFAULT_NAME,
-    title: `the name this station shows in the sessions table, kept in this browser (empty: "${DEFAULT_NAME}"); changing it joins again under the new name, the instruments kept where they are; over ${MAX_NAME_BYTES} bytes it is cut to fit`,
+    title: `the name this station shows in the sessions table, kept in this tab, a new tab starting with the last one given in this browser (empty: "${DEFAULT_NAME}"); changing it joins again under the new name, the instruments kept where they are; over ${MAX_NAME_BYTES} bytes it is cut to fit`,
   });
   nameInput.value = givenName();
   const side = el(

@@ -1,7 +1,9 @@
 // The name a browser station joins with (Station.Attach's client_name), which the
 // sessions table shows beside its station id: what the trainee gave in the live
-// page, kept in the browser (localStorage) across reloads and sessions;
-// "browser console" when none is given.
+// page, kept per tab (sessionStorage) across reloads and sessions, so that two
+// trainees in two tabs of one browser are told apart; a tab without one yet
+// starts with the last name given in this browser (localStorage); "browser
+// console" when none is given.
 
 const KEY = "laparo.clientName";
 
@@ -26,14 +28,23 @@ export function fitName(name: string): string {
   return out;
 }
 
-/** The name given, as kept: trimmed and cut to fit; "" when none. */
+/** This tab's name, as kept: trimmed and cut to fit; "" when none. A tab that
+ * has none yet takes the last name given in this browser, and keeps it: a name
+ * given in another tab later does not change it. */
 export function givenName(): string {
-  return localStorage.getItem(KEY) ?? "";
+  const mine = sessionStorage.getItem(KEY);
+  if (mine !== null) return mine;
+  const last = localStorage.getItem(KEY) ?? "";
+  sessionStorage.setItem(KEY, last);
+  return last;
 }
 
-/** Keeps `name` (trimmed, cut to fit; empty: none) and returns what was kept. */
+/** Keeps `name` (trimmed, cut to fit; empty: none) as this tab's name and as the
+ * last one given in this browser, and returns what was kept. */
 export function setGivenName(name: string): string {
   const kept = fitName(name.trim()).trimEnd();
+  // "" is kept in the tab too: emptied, it stays empty across a reload.
+  sessionStorage.setItem(KEY, kept);
   if (kept) localStorage.setItem(KEY, kept);
   else localStorage.removeItem(KEY);
   return kept;

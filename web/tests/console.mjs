@@ -537,6 +537,31 @@ try {
   await rename("");
   await listed("browser console");
   console.log(`ok a 300-byte name was cut to ${new TextEncoder().encode(cut).length} bytes (${cut.length} "é") and listed; emptied, "browser console" again`);
+  // The name is the tab's: two trainees in two tabs of one browser keep their
+  // own. A new tab starts with the last name given in this browser; a name
+  // given there leaves the first tab's alone, across its reload too.
+  step = "station name: per tab";
+  await rename("trainee Ann");
+  await listed("trainee Ann");
+  const second = await context.newPage();
+  watch(second, "second tab", problems);
+  await second.goto(`${url}#/`);
+  await useToken(second, token);
+  // The right instrument is the first tab's: this one waits for it, its name field shown.
+  await second.goto(`${url}#/live/${encodeURIComponent(padSession)}?drive=right`);
+  await second.waitForSelector("#client-name", { timeout: T });
+  const seeded = await second.$eval("#client-name", (e) => e.value);
+  check(seeded === "trainee Ann", `a new tab's name field says "${seeded}", the last name given being "trainee Ann"`);
+  await second.fill("#client-name", "trainee Bob");
+  await second.press("#client-name", "Enter");
+  await second.close();
+  await namer.reload();
+  await liveState(namer, "live");
+  const own = await namer.$eval("#client-name", (e) => e.value);
+  check(own === "trainee Ann", `a tab named "trainee Ann" says "${own}" after a reload, another tab having been named "trainee Bob"`);
+  await listed("trainee Ann");
+  console.log(`ok a new tab started as "${seeded}", was named "trainee Bob", and the first tab kept "${own}"`);
+
   await namer.close();
 
   // A malformed address is said, over the sessions list.
