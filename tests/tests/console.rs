@@ -18,7 +18,8 @@
 //! session created with the record box untouched recorded as its scene
 //! declares; a station's 250-character client name keeping the sessions table
 //! within the window; a station's name kept per tab (a new tab starting with
-//! the last one given); both instruments driven from one page: the
+//! the last one given), and a pose batch in flight over a rejoin under a new
+//! name not said as poses not sent; both instruments driven from one page: the
 //! 3D view wide in a narrow window, hovering after a missed release not pivoting, shift+wheel as
 //! a horizontal scroll inserting the second instrument, the arrow keys and W
 //! moving the first, the token entered again keeping the instruments where they

@@ -211,12 +211,22 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
   let posesFailed = 0;
   let posesRetryAt = -Infinity;
 
+  /** The current join (Station.Attach), ended to join again under a new name. */
+  let join: AbortController | null = null;
+  let renaming = false;
+  /** Joins the page ended itself to join again under a new name: a batch sent
+   * for one of their stations fails for that alone. */
+  const rejoined = new WeakSet<AbortController>();
+
   /** Sends the waiting poses, a batch per call, one call at a time. */
   async function sendPoses(): Promise<void> {
     if (!handle || sending || sampler.pending.length === 0 || performance.now() < posesRetryAt) return;
     sending = true;
+    /** The join whose station the batch in flight is for. */
+    let sentFor: AbortController | null = null;
     try {
       while (sampler.pending.length > 0 && handle && !signal.aborted) {
+        sentFor = join;
         const batch = sampler.batch();
         const poses = batch.map((p) => {
           sequence++;
@@ -236,6 +246,11 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
       }
     } catch (e) {
       const f = failure(e);
+      // The station was ended by our own rejoin under a new name while the
+      // batch was on its way (the server no longer knows its handle): no
+      // failure to say nor to back off from; the new station is sent the
+      // poses sampled from its joining.
+      if (f.code === Code.NotFound && sentFor !== null && rejoined.has(sentFor)) return;
       posesRetryAt = performance.now() + backoff(posesFailed++);
       // A call answered after the view ended (closed, evicted) would hide why it did.
       if (f.code !== undefined && !signal.aborted && !closed) {
@@ -408,15 +423,13 @@ export function live(root: HTMLElement, asked: LiveOptions, signal: AbortSignal)
   }
   requestAnimationFrame(frame);
 
-  /** The current join (Station.Attach), ended to join again under a new name. */
-  let join: AbortController | null = null;
-  let renaming = false;
   nameInput.addEventListener("change", () => {
     const before = clientName();
     // What is kept is what is sent: trimmed, and cut to the server's limit.
     nameInput.value = setGivenName(nameInput.value);
     if (clientName() === before || !join) return;
     renaming = true;
+    rejoined.add(join);
     join.abort();
   });
 

@@ -562,6 +562,44 @@ try {
   await listed("trainee Ann");
   console.log(`ok a new tab started as "${seeded}", was named "trainee Bob", and the first tab kept "${own}"`);
 
+  // A pose batch on its way while the name changes fails only because the
+  // rejoin ended its station: that is not said as poses not sent. The batch is
+  // held until the station under the new name has joined (the old one gone),
+  // then let go, and the server refuses it for a handle it no longer knows.
+  step = "station name: a batch in flight while renaming";
+  await namer.evaluate(() => {
+    const n = document.querySelector("#notice");
+    window.__notices = [];
+    new MutationObserver(() => window.__notices.push(n.textContent)).observe(n, { childList: true, characterData: true, subtree: true });
+  });
+  let inFlight = null;
+  let sentAfter = 0;
+  await namer.route("**/laparo.v1.Station/SendPoses", (r) => {
+    if (!inFlight) inFlight = r;
+    else {
+      sentAfter++;
+      return r.continue();
+    }
+  });
+  for (const t0 = Date.now(); !inFlight; await namer.waitForTimeout(50)) check(Date.now() - t0 < T, "no SendPoses call to hold");
+  await rename("trainee Cy");
+  await listed("trainee Cy");
+  await liveState(namer, "live");
+  await namer.waitForTimeout(500);
+  await inFlight.continue();
+  const answer = await inFlight.request().response();
+  check(answer, "the batch held over the rejoin got no answer");
+  const grpcStatus = (await answer.allHeaders())["grpc-status"] ?? /grpc-status: ?(\d+)/.exec((await answer.body()).toString("latin1"))?.[1];
+  check(grpcStatus === "5", `the batch held over the rejoin was answered grpc-status ${grpcStatus}, not NOT_FOUND (5)`);
+  // The held call settled, the page sends again; whatever it said is in __notices.
+  for (const t0 = Date.now(); sentAfter === 0; await namer.waitForTimeout(50)) check(Date.now() - t0 < T, "no SendPoses call after the held one");
+  await namer.waitForTimeout(300);
+  await namer.unroute("**/laparo.v1.Station/SendPoses");
+  const notSent = (await namer.evaluate(() => window.__notices)).filter((t) => /poses not sent/.test(t));
+  check(notSent.length === 0, `a batch in flight over the rejoin under a new name was said: "${notSent[0]}"`);
+  await liveState(namer, "live");
+  await listed("trainee Cy");
+  console.log(`ok a batch in flight over a rejoin, refused NOT_FOUND for the old station, was not said as poses not sent`);
   await namer.close();
 
   // A malformed address is said, over the sessions list.
