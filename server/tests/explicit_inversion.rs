@@ -1,12 +1,16 @@
 //! The explicit step stays bounded when a press inverts elements: the default liver
-//! made nearly incompressible (ν = 0.499) and stepped explicitly, pressed 3.5 cm by
-//! the left tip, held and withdrawn (the README's press). Its retakes jump the tip's
-//! vertices and turn elements inside out, whose twist stiffness passes the linear
-//! bound the substep count was set by (`engine/elastic/twist.rs`); with the scene's
-//! substep count alone, the frictionless run below left the ±100 m of any physical
-//! place at tick 110 (and `laparo-server run` with the README's press, at tick 140).
-//! The run must stay finite and near the liver, come back towards its sag after the
+//! made nearly incompressible (ν = 0.499) and stepped explicitly, jabbed 3.5 cm deep
+//! by the left tip at 2 m/s (in about one tick), held and withdrawn. The contact
+//! steps jump the vertices under the tip by centimetres and turn elements inside
+//! out, whose twist stiffness passes the linear bound the substep count was set by
+//! (`engine/elastic/twist.rs`). With the scene's substep count alone, the
+//! frictionless run below leaves the ±100 m of any physical place at tick 14. The run
+//! must stay finite and near the liver, come back towards its sag after the
 //! withdrawal, and must have needed the extra substeps.
+//!
+//! (The README's press, the same depth over a second, turned elements inside out
+//! too while the tip let its tissue go in the middle of it and caught it again with
+//! a jump; it no longer does: `tests/explicit_chatter.rs`.)
 
 mod common;
 
@@ -14,31 +18,34 @@ use common::contact::pose;
 use laparo_server::engine::integrate::kinetic_energy;
 use laparo_server::engine::scene::Scene;
 
-/// Seconds: the press (1 s), the hold (1 s), the withdrawal (0.5 s) and 0.5 s after.
-const SECONDS: f64 = 3.0;
+/// Seconds: the jab and the hold (1 s), the withdrawal (0.5 s) and 0.5 s after.
+const SECONDS: f64 = 2.0;
 
 /// Farthest any vertex may go from rest, m: the press's depth and the ringing of
-/// its retakes (3.2 and 3.5 cm seen).
+/// its retakes (3.3 and 4.1 cm seen).
 const FARTHEST: f64 = 0.06;
-/// Farthest from rest 0.5 s after the withdrawal, m (1.8 and 10.2 mm seen).
+/// Farthest from rest 0.5 s after the withdrawal, m (1.7 and 1.8 mm seen).
 const AFTER: f64 = 0.02;
-/// Kinetic energy 0.5 s after the withdrawal at most, J (8e-5 and 2.3e-4 J seen).
+/// Kinetic energy 0.5 s after the withdrawal at most, J (4.5e-5 and 6.5e-7 J seen).
 const AFTER_KINETIC: f64 = 1e-2;
 
-/// The left tip's height above the liver's middle at `t` (s), m: the README's press.
+/// The left tip's height above the liver's middle at `t` (s), m: down from 9 cm at
+/// 2 m/s (5.5 cm reached at 17.5 ms, on the second tick at 60 Hz), held there until
+/// 1 s, then back up over half a second.
 fn tip_z(t: f64) -> f64 {
     if t < 1.0 {
-        0.09 - 0.035 * t
-    } else if t < 2.0 {
-        0.055
+        (0.09 - JAB_SPEED * t).max(0.055)
     } else {
-        0.055 + 0.035 * ((t - 2.0) / 0.5).min(1.0)
+        0.055 + 0.035 * ((t - 1.0) / 0.5).min(1.0)
     }
 }
 
+/// The jab's speed, m/s.
+const JAB_SPEED: f64 = 2.0;
+
 #[test]
 fn a_press_that_inverts_elements_stays_bounded_when_stepped_explicitly() {
-    for friction in [None, Some(0.0)] {
+    for friction in [Some(0.0), None] {
         let mut scene = Scene::default_scene();
         scene.material.poisson_ratio = 0.499;
         scene.mechanics.integrator = common::integrator_kind("explicit");

@@ -63,7 +63,7 @@ pub(super) enum Hold {
 /// only because the tip press laid its whole triangle there (a coarse mesh cannot
 /// bend around the tip). It stays held only while the tip still presses on that
 /// triangle or another of the vertex's triangles: one of them within
-/// [`OFF_SHAFT`]·r of the tip `P` (a triangle laid on the tip plane is at `r`).
+/// [`TIP_REACH`]·r of the tip `P` (a triangle laid on the tip plane is at `r`).
 /// Without this a tip withdrawn after a slide kept tissue it had dragged sideways,
 /// six radii from its axis and a centimetre out of the liver, with 0.7 N: on the
 /// unbounded tip plane, whose normal is `−Z`, the tissue's sideways pull counted as
@@ -179,7 +179,7 @@ pub(super) struct TipPress {
 }
 
 /// Whether the tip `P` still presses on one of surface vertex `v`'s triangles: one
-/// of them within [`OFF_SHAFT`]·r of it; if so, how.
+/// of them within [`TIP_REACH`]·r of it; if so, how.
 pub(super) fn tip_press(
     surface: &Surface,
     v: u32,
@@ -200,7 +200,7 @@ pub(super) fn tip_press(
             d(a).total_cmp(&d(b))
         })?;
     let offset = nearest.point - tip;
-    (offset.norm() <= OFF_SHAFT * radius).then(|| TipPress {
+    (offset.norm() <= TIP_REACH * radius).then(|| TipPress {
         flat: nearest
             .barycentric
             .iter()
@@ -234,6 +234,25 @@ pub(super) fn shaft_press(
 /// zeros on a side or corner; the margin (a thousandth of the triangle) keeps a
 /// nearest point that lies on a side up to round-off from counting as inside.
 const FLAT_MARGIN: f64 = 1e-3;
+
+/// Distance from the tip `P`, in radii, within which one of a held vertex's triangles
+/// must lie for the tip to still press it ([`tip_press`]), when the vertex is off the
+/// instrument's body.
+///
+/// The tip press lays the triangle under the tip at `r` from `P`, but keeps only the
+/// vertices the tissue presses on the tip: a vertex of that triangle that the tissue
+/// pulls away is let go, and the triangle then turns about its held edge as that
+/// vertex follows the tissue. The README's press (3.5 cm into the coarse liver) on
+/// nearly incompressible tissue (ν = 0.499) turned it from 5.00 to 5.61 mm (1.12 r)
+/// from the tip, while the tissue pressed the two held vertices on it with 0.8 and
+/// 1.9 N. With the bound at [`OFF_SHAFT`] (1.05 r) both were let go 5 mm into the
+/// press and caught again with a jump the next tick, and the held set went on cycling
+/// between 3 and 0 vertices every few ticks to the end of the hold: 30–65 N on each
+/// retake where the hold is 2.76 N, 44–76 N stepped explicitly
+/// (`tests/explicit_chatter.rs`). A quarter of a radius more covers that turn with
+/// twice its margin; what the bound is for, tissue dragged six radii from the tip by
+/// a slide and withdrawn, is far outside it.
+pub(super) const TIP_REACH: f64 = 1.25;
 
 /// Distance from the axis, in radii, beyond which a held vertex is off the shaft's
 /// surface: the push-out leaves vertices at `r (1 + 10⁻⁴)` and an edge pushed out
