@@ -26,8 +26,10 @@
 //! explicit step grows without bound: the default liver at ν = 0.499, pressed 3.5 cm by
 //! the tip and held, had a twist ratio of 5.7 on the tick a retake jumped the tip's
 //! vertices, 15 elements inverted three ticks later, and the liver left the ±100 m
-//! of any physical place within a second (`server/tests/explicit_inversion.rs`).
-//! Three times the substeps kept it bounded.
+//! of any physical place within a second. Three times the substeps kept it bounded.
+//! (That press no longer lets its tissue go and jumps it back; a jab of the same
+//! depth within a tick still does, and without the twist left the liver at tick 14:
+//! `server/tests/explicit_inversion.rs`.)
 //!
 //! The ratio is taken against `λ + 2μ` (the P-wave modulus, which sets the fastest
 //! wave the linear bound resolves) rather than against the largest scaling
