@@ -50,6 +50,18 @@ async function tipMoves(page, instrument, from, what) {
     });
 }
 
+/** Moves a replay page's seek bar to `t` s and lets go of it, as a user does. */
+async function seekTo(page, t) {
+  await page.$eval(
+    "#seek",
+    (e, t) => {
+      e.value = String(t);
+      e.dispatchEvent(new Event("change"));
+    },
+    t,
+  );
+}
+
 function check(cond, what) {
   if (!cond) throw new Error(`${step}: ${what}`);
 }
@@ -235,14 +247,7 @@ try {
   const seekMax = await driver.$eval("#seek", (e) => Number(e.max));
   const half = Math.round(seekMax * 50) / 100;
   const target = Math.abs(half - Number(paused)) > seekMax / 5 ? half : Math.round(seekMax * 10) / 100;
-  await driver.$eval(
-    "#seek",
-    (e, t) => {
-      e.value = String(t);
-      e.dispatchEvent(new Event("change"));
-    },
-    target,
-  );
+  await seekTo(driver, target);
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.startedAt, null, { timeout: T });
   const landed = await driver.$eval("#replay", (e) => Number(e.dataset.startedAt));
   check(Math.abs(landed - target) <= 1 / 30, `sought ${target} s, landed at ${landed} s`);
@@ -317,14 +322,7 @@ try {
   await driver.evaluate(() => (window.__replayStates = []));
   const endMax = await driver.$eval("#seek", (e) => Number(e.max));
   const afterEnd = Math.round(endMax * 30) / 100;
-  await driver.$eval(
-    "#seek",
-    (e, t) => {
-      e.value = String(t);
-      e.dispatchEvent(new Event("change"));
-    },
-    afterEnd,
-  );
+  await seekTo(driver, afterEnd);
   await driver.waitForFunction(() => document.querySelector("#replay")?.dataset.startedAt, null, { timeout: T });
   // The frame shown, the stream ends (the check below says if it did not).
   await driver.waitForFunction(() => document.querySelector("#connection")?.dataset.state === "idle", null, { timeout: 5000 }).catch(() => {});
