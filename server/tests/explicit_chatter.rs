@@ -23,7 +23,6 @@
 mod common;
 
 use common::contact::pose;
-use laparo_server::engine::scene::Scene;
 
 /// The left tip's height above the liver's middle at `t` (s), m: the README's press
 /// (9 cm down to 5.5 cm over a second), then held.
@@ -43,13 +42,7 @@ struct Hold {
 }
 
 fn press(integrator: &str, friction: Option<f64>) -> Hold {
-    let mut scene = Scene::default_scene();
-    scene.material.poisson_ratio = 0.499;
-    scene.mechanics.integrator = common::integrator_kind(integrator);
-    if let Some(mu) = friction {
-        scene.instruments[0].friction = mu;
-    }
-    let mut sim = scene.build().unwrap();
+    let mut sim = common::nearly_incompressible(integrator, friction);
     let dt = sim.dt;
     let ticks = (SECONDS / dt).round() as usize;
     let settled_from = ((SECONDS - 0.5) / dt).round() as usize;

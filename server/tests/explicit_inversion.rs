@@ -16,7 +16,6 @@ mod common;
 
 use common::contact::pose;
 use laparo_server::engine::integrate::kinetic_energy;
-use laparo_server::engine::scene::Scene;
 
 /// Seconds: the jab and the hold (1 s), the withdrawal (0.5 s) and 0.5 s after.
 const SECONDS: f64 = 2.0;
@@ -46,13 +45,7 @@ const JAB_SPEED: f64 = 2.0;
 #[test]
 fn a_press_that_inverts_elements_stays_bounded_when_stepped_explicitly() {
     for friction in [Some(0.0), None] {
-        let mut scene = Scene::default_scene();
-        scene.material.poisson_ratio = 0.499;
-        scene.mechanics.integrator = common::integrator_kind("explicit");
-        if let Some(mu) = friction {
-            scene.instruments[0].friction = mu;
-        }
-        let mut sim = scene.build().unwrap();
+        let mut sim = common::nearly_incompressible("explicit", friction);
         let dt = sim.dt;
         let ticks = (SECONDS / dt).round() as usize;
         let (mut base, mut most) = (u32::MAX, 0);

@@ -31,6 +31,20 @@ pub fn default_variant(
     scene.build().expect("variant builds")
 }
 
+/// The default scene made nearly incompressible (ν = 0.499), stepped by `integrator`,
+/// its left instrument's friction replaced when `friction` is given.
+pub fn nearly_incompressible(integrator: &str, friction: Option<f64>) -> Simulation {
+    let mut scene = Scene::default_scene();
+    scene.material.poisson_ratio = 0.499;
+    scene.mechanics.integrator = integrator_kind(integrator);
+    if let Some(mu) = friction {
+        scene.instruments[0].friction = mu;
+    }
+    scene
+        .build()
+        .expect("the default scene at ν = 0.499 builds")
+}
+
 /// An integrator by its scene name.
 pub fn integrator_kind(name: &str) -> IntegratorKind {
     match name {
