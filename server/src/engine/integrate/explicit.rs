@@ -38,7 +38,7 @@ use crate::engine::scene::limits::MAX_TICK_WORK;
 /// stretches of an element sum to nearly zero and the twist stiffness has no bound;
 /// the count also stays within the tick-work bound [`MAX_TICK_WORK`], as the scene's
 /// own does. Such a tick takes up to 16 ticks' time. The 3.5 cm jab of
-/// `tests/explicit_inversion.rs` took up to 3.2 times (711 substeps where the scene's
+/// `tests/explicit_inversion.rs` took up to 2.6 times (578 substeps where the scene's
 /// are 220); jabs of 5 and 6 cm reached the bound.
 pub const MAX_TWIST_FACTOR: f64 = 16.0;
 
