@@ -62,6 +62,16 @@ async function seekTo(page, t) {
   );
 }
 
+/** A replay page as it stands: the states it went through since `__replayStates`
+ * was last emptied, the time shown and the connection's state. */
+async function replayNow(page) {
+  return page.evaluate(() => ({
+    states: window.__replayStates,
+    time: document.querySelector("#replay").dataset.time,
+    connection: document.querySelector("#connection").dataset.state,
+  }));
+}
+
 function check(cond, what) {
   if (!cond) throw new Error(`${step}: ${what}`);
 }
@@ -308,11 +318,7 @@ try {
   });
   await driver.selectOption("#speed", "0.25");
   await driver.waitForTimeout(1000);
-  const afterSpeed = await driver.evaluate(() => ({
-    states: window.__replayStates,
-    time: document.querySelector("#replay").dataset.time,
-    connection: document.querySelector("#connection").dataset.state,
-  }));
+  const afterSpeed = await replayNow(driver);
   check(
     afterSpeed.states.length === 0 && afterSpeed.time === endedAt && afterSpeed.connection === "ended",
     `the speed changed after the end (at ${endedAt} s): went ${afterSpeed.states.join(", ") || "nowhere"}, at ${afterSpeed.time} s, connection ${afterSpeed.connection}`,
@@ -329,11 +335,7 @@ try {
   await driver.waitForTimeout(300);
   const endSought = await driver.$eval("#replay", (e) => e.dataset.time);
   await driver.waitForTimeout(1000);
-  const endStays = await driver.evaluate(() => ({
-    states: window.__replayStates,
-    time: document.querySelector("#replay").dataset.time,
-    connection: document.querySelector("#connection").dataset.state,
-  }));
+  const endStays = await replayNow(driver);
   check(
     endStays.states.every((s) => s === "paused") && endStays.time === endSought && endStays.connection === "idle",
     `sought ${afterEnd} s after the end: went ${endStays.states.join(", ")}, at ${endSought} s then ${endStays.time} s a second later, connection ${endStays.connection}`,
