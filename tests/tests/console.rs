@@ -8,7 +8,8 @@
 //! paused (its time stands still), sought (it lands at the time asked) and
 //! played to its end, after which a change of speed plays nothing and a seek
 //! shows the frame sought and stays paused; a wrong token refused on the page;
-//! the server stopped and started again on its port (the page says so and comes back by itself);
+//! the server stopped and started again on its port (the page says so and
+//! comes back by itself);
 //! a gamepad driving an instrument and its vibration growing with the force; an
 //! instrument another station holds waited for and taken once let go; a live
 //! view left releasing its WebGL context; a page drawing no frames (a hidden
@@ -20,11 +21,11 @@
 //! within the window; a station's name kept per tab (a new tab starting with
 //! the last one given), and a pose batch in flight over a rejoin under a new
 //! name not said as poses not sent; both instruments driven from one page: the
-//! 3D view wide in a narrow window, hovering after a missed release not pivoting, shift+wheel as
-//! a horizontal scroll inserting the second instrument, the arrow keys and W
-//! moving the first, the token entered again keeping the instruments where they
-//! were; a malformed address said over the sessions list; a replay playing on
-//! through the server's restart;
+//! 3D view wide in a narrow window, hovering after a missed release not
+//! pivoting, shift+wheel as a horizontal scroll inserting the second
+//! instrument, the arrow keys and W moving the first, the token entered again
+//! keeping the instruments where they were; a malformed address said over the
+//! sessions list; a replay playing on through the server's restart;
 //! the console over TLS (a self-signed certificate made here), an instrument
 //! driven there over HTTP/2. Then, on a server
 //! without tokens, a page opened by a name that is not the server's told that its
