@@ -63,7 +63,7 @@ pub const RINGS: usize = 3;
 /// condition number (about `(L/h)²/(1 − 2ν)`) CG brings down by `1e-3` in far fewer
 /// for ν ≤ 0.49; at ν = 0.499 the bound stops it where it is, each iterate being an
 /// improvement of the energy.
-const MAX_ITERATIONS: usize = 60;
+pub(super) const MAX_ITERATIONS: usize = 60;
 /// Relative residual at which the settling stops: the force it leaves is a thousandth
 /// of the jump's unrelaxed one.
 const TOLERANCE: f64 = 1e-3;
@@ -127,16 +127,20 @@ impl Settle {
         self.tick - self.let_go[v as usize] <= 1
     }
 
-    /// Settles the free nodes (not `imposed`) around the vertices `jumped`, whose jumps
-    /// are in `self.jump`, with the stiffness `k`, and moves them in `x`. Clears the
-    /// jumps. Returns the largest move of a free node, m.
+    /// Settles the free nodes (not `imposed`) within `rings` rings of the vertices
+    /// `jumped` (at least [`RINGS`]), whose jumps are in `self.jump`, with the
+    /// stiffness `k`, and moves them in `x`: at most [`MAX_ITERATIONS`] CG iterations
+    /// for every [`RINGS`] rings. Clears the jumps. Returns the largest move of a free
+    /// node, m.
     pub fn settle(
         &mut self,
         k: &BlockMatrix,
         imposed: &[bool],
         jumped: &[u32],
+        rings: usize,
         x: &mut [Point3<f64>],
     ) -> f64 {
+        let rings = rings.max(RINGS);
         self.stamp = self.stamp.wrapping_add(1);
         self.region.clear();
         self.reached.clear();
@@ -147,7 +151,7 @@ impl Settle {
             }
         }
         let mut ring = 0..self.reached.len();
-        for _ in 0..RINGS {
+        for _ in 0..rings {
             let end = self.reached.len();
             for idx in ring.clone() {
                 let i = self.reached[idx] as usize;
@@ -187,7 +191,7 @@ impl Settle {
             .iter()
             .map(|&i| self.r[i as usize].dot(&self.z[i as usize]))
             .sum();
-        for _ in 0..MAX_ITERATIONS {
+        for _ in 0..MAX_ITERATIONS * rings.div_ceil(RINGS) {
             if rr <= stop || rz <= 0.0 {
                 break;
             }

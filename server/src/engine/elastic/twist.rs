@@ -27,9 +27,10 @@
 //! the tip and held, had a twist ratio of 5.7 on the tick a retake jumped the tip's
 //! vertices, 15 elements inverted three ticks later, and the liver left the ±100 m
 //! of any physical place within a second. Three times the substeps kept it bounded.
-//! (That press no longer lets its tissue go and jumps it back; a jab of the same
-//! depth within a tick still does, and without the twist left the liver at tick 14:
-//! `server/tests/explicit_inversion.rs`.)
+//! (That press no longer lets its tissue go and jumps it back, nor does a jab of
+//! the same depth within a tick since the contact settles a jump along the axis
+//! whole; a 6 cm press at 1 m/s without friction still inverts elements, and
+//! without the twist leaves the liver at tick 53: `server/tests/explicit_inversion.rs`.)
 //!
 //! The ratio is taken against `λ + 2μ` (the P-wave modulus, which sets the fastest
 //! wave the linear bound resolves) rather than against the largest scaling

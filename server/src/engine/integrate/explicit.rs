@@ -37,9 +37,9 @@ use crate::engine::scene::limits::MAX_TICK_WORK;
 /// Most the twist of inverted elements multiplies a tick's substeps by, where two
 /// stretches of an element sum to nearly zero and the twist stiffness has no bound;
 /// the count also stays within the tick-work bound [`MAX_TICK_WORK`], as the scene's
-/// own does. Such a tick takes up to 16 ticks' time. The 3.5 cm jab of
-/// `tests/explicit_inversion.rs` took up to 2.6 times (578 substeps where the scene's
-/// are 220); jabs of 5 and 6 cm reached the bound.
+/// own does. Such a tick takes up to 16 ticks' time. The 6 cm press at 1 m/s of
+/// `tests/explicit_inversion.rs` reaches the bound (3,520 substeps where the scene's
+/// are 220).
 pub const MAX_TWIST_FACTOR: f64 = 16.0;
 
 pub(super) fn step(
