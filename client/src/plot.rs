@@ -9,11 +9,11 @@
 //! liver. Text is set in DejaVu Sans, embedded, so the plot needs no font of the
 //! system's.
 
-use std::io::Write;
 use std::path::Path;
 use std::sync::Once;
 
 use laparo_proto::v1;
+use laparo_server::output::WholeFile;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{FontStyle, register_font};
@@ -243,14 +243,21 @@ impl Picture {
     }
 }
 
-/// Writes 8-bit RGB `pixels` of `size` to the PNG file `path`.
+/// Writes 8-bit RGB `pixels` of `size` to the PNG file `path`, whole or not at all
+/// (`laparo_server::output`: a failed write leaves an earlier plot of that name as
+/// it was).
 fn write_png(path: &Path, size: (u32, u32), pixels: &[u8]) -> Result<(), png::EncodingError> {
-    let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut encoder = png::Encoder::new(&mut file, size.0, size.1);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header()?.write_image_data(pixels)?;
-    file.flush()?;
+    let mut file = WholeFile::create(path)?;
+    {
+        let mut encoder = png::Encoder::new(&mut file, size.0, size.1);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(pixels)?;
+        // Its end chunk, whose error a drop would not report.
+        writer.finish()?;
+    }
+    file.commit()?;
     Ok(())
 }
 

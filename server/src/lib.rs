@@ -12,6 +12,7 @@ pub mod engine;
 pub mod export;
 pub mod frame;
 pub mod headless;
+pub mod output;
 pub mod recording;
 pub mod service;
 pub mod session;

@@ -8,12 +8,12 @@
 //! `displacement` (scale 1) then draws the deformed shape `X + u`; a file that held
 //! the deformed points would be warped twice. The file says so in a comment.
 
-use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::Path;
 
 use crate::engine::elastic::von_mises_of_strain;
 use crate::engine::simulation::Simulation;
+use crate::output::write_whole;
 
 /// VTK's cell type for a linear tetrahedron.
 const VTK_TETRA: u8 = 10;
@@ -30,13 +30,11 @@ pub fn tet_von_mises(sim: &Simulation) -> Vec<f64> {
         .collect()
 }
 
-/// Writes the simulation's current state to `path`.
+/// Writes the simulation's current state to `path`, whole or not at all (see
+/// [`output`](crate::output): a failed write leaves an earlier file of that name as
+/// it was).
 pub fn write_vtu(sim: &Simulation, path: &Path) -> io::Result<()> {
-    let file = File::create(path)?;
-    let mut w = BufWriter::new(file);
-    write_vtu_to(sim, &mut w)?;
-    w.flush()?;
-    w.into_inner().map_err(|e| e.into_error())?.sync_all()
+    write_whole(path, |w| write_vtu_to(sim, w))
 }
 
 /// Writes the simulation's current state as VTU to any writer.

@@ -24,9 +24,8 @@
 //! recovery must be written elsewhere ([`RecoverError::WouldLose`]).
 
 use std::collections::HashSet;
-use std::fs::File;
-use std::io::{BufWriter, Seek, Write};
-use std::path::{Path, PathBuf};
+use std::io::{Seek, Write};
+use std::path::Path;
 
 use mcap::records::Record;
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
@@ -35,6 +34,7 @@ use super::METADATA_NAME;
 use super::records::{chunk_records, frame_at, read_record};
 use super::source::{Follow, Source};
 use crate::engine::scene::{file_kind, same_file};
+use crate::output::WholeFile;
 
 /// What a recovery kept and left out.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -127,39 +127,21 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         Ok(_) => same_file(input, output),
         Err(_) => false,
     };
-    let mut part = output.as_os_str().to_owned();
-    part.push(format!(".{}.part", std::process::id()));
-    let part = PathBuf::from(part);
-    let mut created = false;
-    let result = (|| {
-        let out = File::options()
-            .write(true)
-            .create_new(true)
-            .open(&part)
-            .map_err(|e| write_error(format!("{}: {e}", part.display())))?;
-        created = true;
-        let (recovery, out) =
-            recover_source(&file, &source, BufWriter::new(out)).map_err(|e| match e {
-                RecoverError::Write { message, .. } => write_error(message),
-                e => e,
-            })?;
-        if in_place && recovery.lost_more_than_a_tail() {
-            return Err(RecoverError::WouldLose {
-                file: file.clone(),
-                what: lost(&recovery),
-            });
-        }
-        let out = out
-            .into_inner()
-            .map_err(|e| write_error(e.into_error().to_string()))?;
-        out.sync_all().map_err(|e| write_error(e.to_string()))?;
-        std::fs::rename(&part, output).map_err(|e| write_error(e.to_string()))?;
-        Ok(recovery)
-    })();
-    if result.is_err() && created {
-        let _ = std::fs::remove_file(&part);
+    let out = WholeFile::create(output).map_err(|e| write_error(e.to_string()))?;
+    let part = out.part().display().to_string();
+    let (recovery, out) = recover_source(&file, &source, out).map_err(|e| match e {
+        RecoverError::Write { message, .. } => write_error(format!("{part}: {message}")),
+        e => e,
+    })?;
+    if in_place && recovery.lost_more_than_a_tail() {
+        // Dropping `out` removes the part file; the input stays as it is.
+        return Err(RecoverError::WouldLose {
+            file: file.clone(),
+            what: lost(&recovery),
+        });
     }
-    result
+    out.commit().map_err(|e| write_error(e.to_string()))?;
+    Ok(recovery)
 }
 
 /// What a recovery left out besides the unfinished tail, in words.
