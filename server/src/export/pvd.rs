@@ -7,7 +7,8 @@
 //! After every frame the `.pvd` on disk is a complete file listing every frame
 //! written, so a run that stops early (killed, or the machine down) leaves a series
 //! ParaView opens. Each frame's VTU is written and synced first; then the index is
-//! updated in place: the frame's `DataSet` line and the closing tags are written in
+//! written (the first frame: whole, renamed over an earlier index) or updated in
+//! place: the frame's `DataSet` line and the closing tags are written in
 //! one write over the previous closing tags (the file stays open between frames),
 //! and the index is synced (`fdatasync`). A frame thus writes the same few hundred
 //! bytes to the index whatever the number of frames before it, and a series of
@@ -19,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 use super::vtu::write_vtu;
 use crate::engine::simulation::Simulation;
+use crate::output::write_whole;
 
 /// Most frames one series may hold: a bound on the files a run writes.
 pub const MAX_FRAMES: u64 = 100_000;
@@ -97,15 +99,19 @@ impl PvdSeries {
             "    <DataSet timestep=\"{t:e}\" group=\"\" part=\"0\" file=\"{}\"/>\n",
             xml_escape(file)
         );
-        let mut update = String::with_capacity(HEAD.len() + line.len() + TAIL.len());
-        let index = match &mut self.index {
-            Some(index) => index,
-            None => {
-                update.push_str(HEAD);
-                self.tail_at = 0;
-                self.index.insert(File::create(&self.path)?)
-            }
+        let Some(index) = &mut self.index else {
+            // The first frame writes the index whole, beside it, and renames it over
+            // an earlier one (see `output`): a failure leaves that as it was.
+            write_whole(&self.path, |w| {
+                w.write_all(HEAD.as_bytes())?;
+                w.write_all(line.as_bytes())?;
+                w.write_all(TAIL.as_bytes())
+            })?;
+            self.index = Some(File::options().write(true).open(&self.path)?);
+            self.tail_at = (HEAD.len() + line.len()) as u64;
+            return Ok(());
         };
+        let mut update = String::with_capacity(line.len() + TAIL.len());
         update.push_str(&line);
         update.push_str(TAIL);
         index.seek(SeekFrom::Start(self.tail_at))?;
