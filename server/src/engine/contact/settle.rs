@@ -16,9 +16,10 @@
 //! So the free tissue near the jumped vertices is corrected with them, statically: the
 //! displacement `Δu` of the free nodes that minimises the elastic energy with the
 //! jumps imposed, `K_FF Δu_F = −K_FJ δ_J` (`J` the jumped vertices, `F` the free
-//! nodes), solved on the free nodes within [`RINGS`] rings of the jumped ones (the
-//! rest kept), by conjugate gradients preconditioned with the inverse diagonal blocks
-//! `K_ii⁻¹`. That is what the elastic step would do with the jumps imposed at a low
+//! nodes), solved on the free nodes within [`RINGS`] rings of the jumped ones (more
+//! for a jump past the instrument's radius, see the contact stage's `SETTLE_RINGS`;
+//! the rest kept), by conjugate gradients preconditioned with the inverse diagonal
+//! blocks `K_ii⁻¹`. That is what the elastic step would do with the jumps imposed at a low
 //! rate; as a correction of position it adds no velocity. Its region cuts the decay of
 //! the displacement (as `a/ρ` from a patch of size `a`) at `ρ = L`, which stiffens the
 //! response by about `1/(1 − a/L)`: with three rings around a held vertex whose patch

@@ -774,11 +774,14 @@ const SETTLE_REACH: f64 = 1.0;
 /// The most rings of free nodes settled around a jump ([`RINGS`] for jumps up to a
 /// radius, one more for every further radius). A jump the size of the instrument
 /// moves the tissue beside it by as much, which three rings of a coarse mesh (3 cm)
-/// cut off: the 3.5 cm jab settled within three rings left 0.14 J and rang
-/// explicitly (the held set changing 9 times in a second, an 18 N retake), within five
-/// or more 0.08 J and held steadily. Each three rings take
-/// [`MAX_ITERATIONS`](super::settle::MAX_ITERATIONS) more
-/// iterations; twelve rings bound the work to four times the usual settling's.
+/// cut off: the 3.5 cm jab settled whole within three rings left 0.14 J and rang
+/// explicitly (the held set changing 9 times in a second, an 18 N retake); within
+/// five rings or more it held steadily (within ten, 0.08 J left). Each three rings
+/// take [`MAX_ITERATIONS`](super::settle::MAX_ITERATIONS) more iterations, so a tick
+/// settles with at most four times the usual iterations, over a region up to twelve
+/// rings deep (on a fine mesh up to (12/3)³ = 64 times as many nodes; never more than
+/// the mesh's). Only ticks whose jumps along the axis pass a radius pay it: a jab,
+/// not a press.
 const SETTLE_RINGS: usize = 12;
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
