@@ -40,9 +40,7 @@ impl WholeFile {
                 ),
             ));
         }
-        let mut part = output.as_os_str().to_owned();
-        part.push(format!(".{}.part", std::process::id()));
-        let part = PathBuf::from(part);
+        let part = part_path(output);
         let file = File::options().write(true).create_new(true).open(&part)?;
         Ok(WholeFile {
             output: output.to_path_buf(),
@@ -54,6 +52,11 @@ impl WholeFile {
     /// The part file's path (`OUT.<pid>.part`).
     pub fn part(&self) -> &Path {
         &self.part
+    }
+
+    /// The part file, until committed.
+    fn file(&mut self) -> &mut BufWriter<File> {
+        self.file.as_mut().expect("a file is held until committed")
     }
 
     /// Flushes and syncs the part file and renames it over the output.
@@ -68,26 +71,17 @@ impl WholeFile {
 
 impl Write for WholeFile {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.file
-            .as_mut()
-            .expect("a file is held until committed")
-            .write(buf)
+        self.file().write(buf)
     }
 
     fn flush(&mut self) -> io::Result<()> {
-        self.file
-            .as_mut()
-            .expect("a file is held until committed")
-            .flush()
+        self.file().flush()
     }
 }
 
 impl Seek for WholeFile {
     fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
-        self.file
-            .as_mut()
-            .expect("a file is held until committed")
-            .seek(pos)
+        self.file().seek(pos)
     }
 }
 
@@ -98,6 +92,14 @@ impl Drop for WholeFile {
         drop(self.file.take());
         let _ = std::fs::remove_file(&self.part);
     }
+}
+
+/// The part file an output is written to before it is renamed over it:
+/// `OUT.<pid>.part`, beside it.
+pub fn part_path(output: &Path) -> PathBuf {
+    let mut part = output.as_os_str().to_owned();
+    part.push(format!(".{}.part", std::process::id()));
+    PathBuf::from(part)
 }
 
 /// Writes `output` whole with `write`, or leaves it as it was.

@@ -34,7 +34,7 @@ use super::METADATA_NAME;
 use super::records::{chunk_records, frame_at, read_record};
 use super::source::{Follow, Source};
 use crate::engine::scene::{file_kind, same_file};
-use crate::output::WholeFile;
+use crate::output::{WholeFile, part_path};
 
 /// What a recovery kept and left out.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -127,10 +127,10 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         Ok(_) => same_file(input, output),
         Err(_) => false,
     };
-    let out = WholeFile::create(output).map_err(|e| write_error(e.to_string()))?;
-    let part = out.part().display().to_string();
+    let out = WholeFile::create(output)
+        .map_err(|e| write_error(format!("{}: {e}", part_path(output).display())))?;
     let (recovery, out) = recover_source(&file, &source, out).map_err(|e| match e {
-        RecoverError::Write { message, .. } => write_error(format!("{part}: {message}")),
+        RecoverError::Write { message, .. } => write_error(message),
         e => e,
     })?;
     if in_place && recovery.lost_more_than_a_tail() {

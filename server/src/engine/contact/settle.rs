@@ -19,14 +19,14 @@
 //! nodes), solved on the free nodes within [`RINGS`] rings of the jumped ones (more
 //! for a jump past the instrument's radius, see the contact stage's `SETTLE_RINGS`;
 //! the rest kept), by conjugate gradients preconditioned with the inverse diagonal
-//! blocks `K_ii⁻¹`. That is what the elastic step would do with the jumps imposed at a low
-//! rate; as a correction of position it adds no velocity. Its region cuts the decay of
-//! the displacement (as `a/ρ` from a patch of size `a`) at `ρ = L`, which stiffens the
-//! response by about `1/(1 − a/L)`: with three rings around a held vertex whose patch
-//! is one ring, 1.5×, within the 2× of the steady force; measured on SOFA's
-//! liver, 1.07–1.08× at ν = 0.3 and 1.28× (corotational) to 1.40× (linear) at
-//! ν = 0.499 (nearly incompressible tissue needs room to bulge, and the region's edge
-//! takes some of it), against 2.7× and 49× without.
+//! blocks `K_ii⁻¹`. That is what the elastic step would do with the jumps imposed at
+//! a low rate; as a correction of position it adds no velocity. Its region cuts the
+//! decay of the displacement (as `a/ρ` from a patch of size `a`) at `ρ = L`, which
+//! stiffens the response by about `1/(1 − a/L)`: with three rings around a held
+//! vertex whose patch is one ring, 1.5×, within the 2× of the steady force;
+//! measured on SOFA's liver, 1.07–1.08× at ν = 0.3 and 1.28× (corotational) to
+//! 1.40× (linear) at ν = 0.499 (nearly incompressible tissue needs room to bulge,
+//! and the region's edge takes some of it), against 2.7× and 49× without.
 //!
 //! `K` is the stiffness the elastic step just moved the liver with: the linear one, or
 //! for the corotational model the tangent `K̂ = Σ_e R_e K_e R_eᵀ` of the tick (the
