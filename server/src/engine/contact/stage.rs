@@ -50,7 +50,7 @@ use super::push::push_out;
 use super::scratch::{ContactStats, Scratch};
 use super::settle::{RINGS, Settle};
 use super::tip::{nearest_point, press_tip};
-use crate::engine::elastic::{BlockMatrix, ElasticModel};
+use crate::engine::elastic::{BlockMatrix, ElasticModel, Formulation};
 use crate::engine::integrate::{Imposed, State};
 use crate::engine::mesh::Surface;
 
@@ -290,7 +290,7 @@ impl ContactStage {
             self.hold_and_release(k, ins, surface, model, state, imposed);
             self.collect_shaft_edges(ins, surface, state);
         }
-        let settled = self.settle_jumps(instruments, surface, tangent, state, imposed);
+        let settled = self.settle_jumps(instruments, surface, model, tangent, state, imposed);
         // One more pass for every instrument, tip and push-out, so that what one
         // instrument moved is not left inside another or across its axis (a large
         // triangle swung back over a pressed tip has no vertex inside the instrument;
@@ -374,12 +374,15 @@ impl ContactStage {
     /// smallest radius, unless the scene turns it off, each jump scaled down so that
     /// the largest sideways part (across its instrument's axis) is at most
     /// [`SETTLE_REACH`] radii; the region grows by a ring for every radius the largest
-    /// settled jump passes one radius by, up to [`SETTLE_RINGS`]. Returns whether it
-    /// did, and then leaves in `rel_start` the surface as the settling found it.
+    /// settled jump passes one radius by, up to [`SETTLE_RINGS`]; past a radius, on
+    /// the corotational model, Newton passes on the model's own force follow the
+    /// linear settling (see `settle`). Returns whether it did, and then leaves in
+    /// `rel_start` the surface as the settling found it.
     fn settle_jumps(
         &mut self,
         instruments: &[Instrument],
         surface: &Surface,
+        model: &ElasticModel,
         tangent: &BlockMatrix,
         state: &mut State,
         imposed: &Imposed,
@@ -431,7 +434,16 @@ impl ContactStage {
         for &v in &surface.vertices {
             self.s.rel_start[v as usize] = state.x[v as usize];
         }
-        settle.settle(tangent, imposed.mask(), &self.jumped, rings, &mut state.x);
+        let nonlinear = (largest > radius && model.formulation == Formulation::Corotational)
+            .then_some((model, &self.end[..]));
+        settle.settle(
+            tangent,
+            imposed.mask(),
+            &self.jumped,
+            rings,
+            nonlinear,
+            &mut state.x,
+        );
         true
     }
 
