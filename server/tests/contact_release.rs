@@ -250,11 +250,14 @@ fn a_deep_fast_pivot_of_both_instruments_lets_the_liver_go() {
     }
     let off = max_distance(&sim.state.x, &sag);
     println!("last held {last_held} s after the withdrawal; {off:.2e} m off rest");
-    // The withdrawal drags tissue squeezed against the shaft out with it, and that
-    // slides back off the shaft at most half a radius a tick (`MAX_SLIDE`): 0.22 s
-    // here, longer than the 0.1 s a press takes to let go (the grid above).
+    // The withdrawal drags tissue squeezed against the shaft out with it. Settled
+    // linearly around the swings' jumps, that tissue was left so out of balance that
+    // it was caught again and again as it sprang back, and the last of it went 0.2 s
+    // after the withdrawal; with the settling's Newton passes (`contact/settle.rs`)
+    // nothing is held after it, within the 0.1 s a press takes to let go (the grid
+    // above).
     assert!(
-        last_held <= 0.5,
+        last_held <= 0.1,
         "still held {last_held} s after the withdrawal"
     );
     assert!(off <= 1e-3, "the liver is {off} m off its rest");

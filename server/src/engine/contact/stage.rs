@@ -141,10 +141,11 @@ impl ContactStage {
     }
 
     /// The stage with the settling of the tissue around its jumps on or off (off when
-    /// built).
-    pub fn with_settling(mut self, on: bool) -> Self {
+    /// built), for a model of `elements` corotational elements (none for the linear
+    /// model; the settling's Newton passes use them).
+    pub fn with_settling(mut self, on: bool, elements: usize) -> Self {
         let n = self.holders.len();
-        self.settle = on.then(|| Settle::new(n));
+        self.settle = on.then(|| Settle::new(n, elements));
         self.jumped = Vec::with_capacity(if on { n } else { 0 });
         self
     }
@@ -374,10 +375,13 @@ impl ContactStage {
     /// smallest radius, unless the scene turns it off, each jump scaled down so that
     /// the largest sideways part (across its instrument's axis) is at most
     /// [`SETTLE_REACH`] radii; the region grows by a ring for every radius the largest
-    /// settled jump passes one radius by, up to [`SETTLE_RINGS`]; past a radius, on
-    /// the corotational model, Newton passes on the model's own force follow the
-    /// linear settling (see `settle`). Returns whether it did, and then leaves in
-    /// `rel_start` the surface as the settling found it.
+    /// settled jump passes one radius by, up to [`SETTLE_RINGS`]. Past a radius, on
+    /// the corotational model and when no jump was scaled down, Newton passes on the
+    /// model's own force follow the linear settling (see `settle`); a sweep's scaled
+    /// jumps are settled linearly only (with the passes, the whole-liver sweep of
+    /// `tests/contact_hard_cases.rs` left a triangle 4.9 mm inside the shaft). Returns
+    /// whether it did, and then leaves in `rel_start` the surface as the settling
+    /// found it.
     fn settle_jumps(
         &mut self,
         instruments: &[Instrument],
@@ -434,8 +438,9 @@ impl ContactStage {
         for &v in &surface.vertices {
             self.s.rel_start[v as usize] = state.x[v as usize];
         }
-        let nonlinear = (largest > radius && model.formulation == Formulation::Corotational)
-            .then_some((model, &self.end[..]));
+        let nonlinear =
+            (scale == 1.0 && largest > radius && model.formulation == Formulation::Corotational)
+                .then_some((model, &self.end[..]));
         settle.settle(
             tangent,
             imposed.mask(),

@@ -132,6 +132,33 @@ impl Element {
         add(self.tet[3] as usize, f3);
     }
 
+    /// The element's rotation at `x`: the polar factor of `F`, extracted cold (as
+    /// [`negated_force_on`] does).
+    pub fn rotation_at(&self, x: &[Point3<f64>]) -> Matrix3<f64> {
+        let mut q = UnitQuaternion::identity();
+        extract_rotation(&self.deformation_gradient(x), &mut q, COLD_ITERATIONS);
+        *q.to_rotation_matrix().matrix()
+    }
+
+    /// The element's share of `K̂ p` for rotation `r` held fixed: `V R σ(Rᵀ δF) g_k` at
+    /// each vertex `k`, `δF = Σ_k p_k g_kᵀ` (the tangent of the corotational force
+    /// with the rotation frozen, as the implicit step uses it), added to `out`.
+    pub fn add_tangent_product(
+        &self,
+        r: &Matrix3<f64>,
+        p: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) {
+        let p0 = p[self.tet[0] as usize];
+        let mut df = Matrix3::zeros();
+        for k in 0..3 {
+            df += (p[self.tet[k + 1] as usize] - p0) * self.g[k].transpose();
+        }
+        // σ(Rᵀ δF + I) is the stress of ε = sym(Rᵀ δF): linear in δF.
+        let m = self.volume * r * self.stress(&(r.tr_mul(&df) + Matrix3::identity()));
+        self.scatter(&m, |v, f| out[v] += f);
+    }
+
     /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
     #[inline]
     pub fn strain(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {

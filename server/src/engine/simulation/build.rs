@@ -63,7 +63,7 @@ impl Scene {
         let pushes = instruments.iter().any(|i| i.tip_contact || i.shaft_contact);
         let contact = pushes.then(|| {
             ContactStage::new(&mesh.surface, &mesh.positions, &fixed, instruments.len())
-                .with_settling(self.contact.settle)
+                .with_settling(self.contact.settle, model.elements.len())
                 .with_footprint(self.contact.footprint)
         });
         let forces = pushes
