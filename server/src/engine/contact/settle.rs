@@ -235,14 +235,25 @@ impl Settle {
             ring = end..self.reached.len();
         }
         // The model's own force on the region before the jumps, which the Newton
-        // passes below restore.
+        // passes below restore, from the elements around the region.
         if let Some((model, before)) = nonlinear {
+            self.elements.clear();
+            self.element_stamp = self.element_stamp.wrapping_add(1);
+            for &i in &self.region {
+                for &e in model.vertex_elements.of(i) {
+                    if self.element_mark[e as usize] != self.element_stamp {
+                        self.element_mark[e as usize] = self.element_stamp;
+                        self.elements.push(e);
+                    }
+                }
+            }
             for &v in jumped {
                 self.swap[v as usize] = x[v as usize];
                 x[v as usize] = before[v as usize];
             }
+            self.negated_force(model, x);
             for &i in &self.region {
-                self.force[i as usize] = model.negated_elastic_force_on(i, x);
+                self.force[i as usize] = self.q[i as usize];
             }
             // The jumps as settled.
             for &v in jumped {
@@ -266,16 +277,17 @@ impl Settle {
         if let Some((model, _)) = nonlinear {
             let mut last = f64::INFINITY;
             for pass in 0..=NEWTON_PASSES {
+                // The rotations at `x`, for the force here and the tangent about here.
+                self.negated_force(model, x);
                 let mut residual = 0.0;
-                for idx in 0..self.region.len() {
-                    let i = self.region[idx];
-                    let r = self.force[i as usize] - model.negated_elastic_force_on(i, x);
-                    self.r[i as usize] = r;
-                    residual += r.norm_squared();
+                for &i in &self.region {
+                    let i = i as usize;
+                    self.r[i] = self.force[i] - self.q[i];
+                    residual += self.r[i].norm_squared();
                 }
                 if residual > last {
-                    // The pass made things worse (the tangent of the tick's rotations
-                    // is too far from the deformed tissue's): undone, and no more.
+                    // The pass made things worse (the tangent, its rotations held
+                    // fixed, is too far from the tissue's): undone, and no more.
                     for &i in &self.region {
                         x[i as usize] -= self.du[i as usize];
                     }
@@ -285,19 +297,6 @@ impl Settle {
                     break;
                 }
                 last = residual;
-                // The tangent about where the tissue is now: the rotations of the
-                // elements around the region extracted afresh.
-                self.elements.clear();
-                self.element_stamp = self.element_stamp.wrapping_add(1);
-                for &i in &self.region {
-                    for &e in model.vertex_elements.of(i) {
-                        if self.element_mark[e as usize] != self.element_stamp {
-                            self.element_mark[e as usize] = self.element_stamp;
-                            self.elements.push(e);
-                            self.rotation[e as usize] = model.elements[e as usize].rotation_at(x);
-                        }
-                    }
-                }
                 largest = largest.max(self.solve(Tangent::Fresh(model), MAX_ITERATIONS, x));
             }
             for &v in jumped {
@@ -308,6 +307,23 @@ impl Settle {
             self.jump[v as usize] = Vector3::zeros();
         }
         largest
+    }
+
+    /// The model's negated elastic force at `x` on the region's nodes, in `q` (whose
+    /// other entries it leaves undefined), from the elements around the region, each
+    /// element's rotation extracted afresh and kept in `rotation` for the tangent.
+    fn negated_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
+        for &e in &self.elements {
+            for v in model.elements[e as usize].tet {
+                self.q[v as usize] = Vector3::zeros();
+            }
+        }
+        for &e in &self.elements {
+            let element = &model.elements[e as usize];
+            let r = element.rotation_at(x);
+            self.rotation[e as usize] = r;
+            element.add_negated_force(&r, x, &mut self.q);
+        }
     }
 
     /// Solves `K_FF Δu_F = b` on the region, `b` in `r`, by at most `iterations` CG

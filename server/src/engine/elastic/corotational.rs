@@ -140,6 +140,13 @@ impl Element {
         *q.to_rotation_matrix().matrix()
     }
 
+    /// Adds the element's share of the negated elastic force `V R σ(Rᵀ F) g_k` at
+    /// `x`, for its rotation `r` at `x` ([`Element::rotation_at`]), to `out`.
+    pub fn add_negated_force(&self, r: &Matrix3<f64>, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
+        let m = self.volume * r * self.stress(&r.tr_mul(&self.deformation_gradient(x)));
+        self.scatter(&m, |v, f| out[v] += f);
+    }
+
     /// The element's share of `K̂ p` for rotation `r` held fixed: `V R σ(Rᵀ δF) g_k` at
     /// each vertex `k`, `δF = Σ_k p_k g_kᵀ` (the tangent of the corotational force
     /// with the rotation frozen, as the implicit step uses it), added to `out`.
