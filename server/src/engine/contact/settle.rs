@@ -86,6 +86,7 @@
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
+use crate::engine::elastic::corotational::negated_force_on_with;
 use crate::engine::elastic::{BlockMatrix, ElasticModel};
 
 /// Rings of neighbours of the jumped vertices whose free nodes are settled.
@@ -310,19 +311,20 @@ impl Settle {
     }
 
     /// The model's negated elastic force at `x` on the region's nodes, in `q` (whose
-    /// other entries it leaves undefined), from the elements around the region, each
-    /// element's rotation extracted afresh and kept in `rotation` for the tangent.
+    /// other entries it leaves as they were): each element around the region rotated
+    /// once, afresh, its rotation kept in `rotation` for the tangent; each node's sum
+    /// taken as [`ElasticModel::negated_elastic_force_on`] takes it, to the last bit.
     fn negated_force(&mut self, model: &ElasticModel, x: &[Point3<f64>]) {
         for &e in &self.elements {
-            for v in model.elements[e as usize].tet {
-                self.q[v as usize] = Vector3::zeros();
-            }
+            self.rotation[e as usize] = model.elements[e as usize].rotation_at(x);
         }
-        for &e in &self.elements {
-            let element = &model.elements[e as usize];
-            let r = element.rotation_at(x);
-            self.rotation[e as usize] = r;
-            element.add_negated_force(&r, x, &mut self.q);
+        for &i in &self.region {
+            self.q[i as usize] =
+                negated_force_on_with(&model.elements, &model.vertex_elements, i, |e| {
+                    let element = &model.elements[e as usize];
+                    element
+                        .force_matrix(&self.rotation[e as usize], &element.deformation_gradient(x))
+                });
         }
     }
 

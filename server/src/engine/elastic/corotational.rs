@@ -140,11 +140,12 @@ impl Element {
         *q.to_rotation_matrix().matrix()
     }
 
-    /// Adds the element's share of the negated elastic force `V R σ(Rᵀ F) g_k` at
-    /// `x`, for its rotation `r` at `x` ([`Element::rotation_at`]), to `out`.
-    pub fn add_negated_force(&self, r: &Matrix3<f64>, x: &[Point3<f64>], out: &mut [Vector3<f64>]) {
-        let m = self.volume * r * self.stress(&r.tr_mul(&self.deformation_gradient(x)));
-        self.scatter(&m, |v, f| out[v] += f);
+    /// `V R σ(Rᵀ F)` for the rotation `r` and the deformation gradient `f`: the
+    /// matrix whose product with the rest gradient `g_k` is the element's share of
+    /// the negated elastic force on its vertex `k`, N.
+    #[inline]
+    pub fn force_matrix(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
+        self.volume * r * self.stress(&r.tr_mul(f))
     }
 
     /// The element's share of `K̂ p` for rotation `r` held fixed: `V R σ(Rᵀ δF) g_k` at
@@ -378,14 +379,29 @@ pub(super) fn negated_force_on(
     v: u32,
     x: &[Point3<f64>],
 ) -> Vector3<f64> {
-    let mut out = Vector3::zeros();
-    for &k in around.of(v) {
+    negated_force_on_with(elements, around, v, |k| {
         let e = &elements[k as usize];
         let f = e.deformation_gradient(x);
         let mut q = UnitQuaternion::identity();
         extract_rotation(&f, &mut q, COLD_ITERATIONS);
-        let r = *q.to_rotation_matrix().matrix();
-        let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+        e.force_matrix(q.to_rotation_matrix().matrix(), &f)
+    })
+}
+
+/// `Σ_{e∋v} m_e g_{e,v}`: the negated elastic force on vertex `v`, N, from each
+/// element's [`Element::force_matrix`] as `force_matrix(e)` gives it, summed in the
+/// order of `around`. [`negated_force_on`] and the contact's settling (which keeps
+/// the rotations it extracted) both sum here, so that they agree to the last bit.
+pub fn negated_force_on_with(
+    elements: &[Element],
+    around: &VertexElements,
+    v: u32,
+    mut force_matrix: impl FnMut(u32) -> Matrix3<f64>,
+) -> Vector3<f64> {
+    let mut out = Vector3::zeros();
+    for &k in around.of(v) {
+        let e = &elements[k as usize];
+        let rs = force_matrix(k);
         for (&w, g) in e.tet.iter().zip(&e.gradients()) {
             if w == v {
                 out += rs * g;
