@@ -1,21 +1,30 @@
 //! The explicit step stays bounded when a press inverts elements: the default liver
 //! made nearly incompressible (ν = 0.499), without friction, and stepped explicitly,
-//! pressed 6 cm deep by the left tip at 1 m/s (1.7 cm a tick), held and withdrawn.
-//! The press turns elements inside out, whose twist stiffness passes the linear
-//! bound the substep count was set by (`engine/elastic/twist.rs`). With the scene's
-//! substep count alone, the run leaves the ±100 m of any physical place at tick 53.
-//! The run must stay finite and within 10 cm of rest, and must have needed the extra
-//! substeps.
+//! pressed 6 cm deep by the left tip at about 1 m/s (1.7 cm a tick), held and
+//! withdrawn. The press turns elements inside out, whose twist stiffness passes the
+//! linear bound the substep count was set by (`engine/elastic/twist.rs`). With the
+//! scene's substep count alone, the run leaves the ±100 m of any physical place at
+//! tick 53. Every run must stay finite and within [`FARTHEST`] of rest, and must
+//! have needed the extra substeps.
+//!
+//! The press is run as a grid of nine neighbours ([`SPEEDS`] × [`OFFSETS`]), not one:
+//! after the first inversions the motion is chaotic, and how far the tissue rings
+//! is not a property of the step. Across the grid the farthest vertex goes 69–130
+//! mm; summing each node's settling force in another order, a change of round-off
+//! alone, took the middle press from 90.7 to 200.9 mm (634 J). What is asserted is
+//! what the twist substeps are for: every run finite and bounded ([`FARTHEST`]),
+//! where the scene's substeps alone run away.
 //!
 //! (Until the contact's settling took a jump along the instrument's axis whole, a
 //! 3.5 cm jab at 2 m/s did this, and the README's press before the tip's hold was
 //! widened; neither inverts elements now: `tests/explicit_chatter.rs`.)
 //!
-//! Not asserted: the liver's return to rest. After the withdrawal it came to rest
-//! 44 mm from its sag, holding nothing, with elements still inside out: the
-//! corotational energy has a spurious minimum there, which the twist substeps keep
-//! stable but do not leave (issue 15's stated limit). Since the settling's Newton
-//! passes (`contact/settle.rs`) it is 10.1 mm off 2 s in, still moving (3.5e-3 J).
+//! Not asserted: the liver's return to rest. The tip lets go of a vertex the tissue
+//! still presses on it once none of its triangles lies within reach of the tip, and
+//! takes it back with a jump (issue 15's face contact, not built). 2 s in, the
+//! grid's runs are 1.4–96.5 mm from rest; an earlier run of the middle press came
+//! to rest 44 mm off with 17 elements inside out, on a spurious minimum of the
+//! corotational energy that the twist substeps keep stable but do not leave.
 
 mod common;
 
@@ -26,59 +35,112 @@ use laparo_server::engine::integrate::kinetic_energy;
 const SECONDS: f64 = 2.0;
 
 /// Farthest any vertex may go from rest, m: the press's depth and the ringing of
-/// the inverted elements (82.8 mm seen; 90.7 mm with the settling's Newton passes).
-const FARTHEST: f64 = 0.1;
+/// the inverted elements. Measured: 69.3–130.4 mm over the grid (the middle press
+/// 90.7 mm, kinetic energy up to 187 J), 200.9 mm for the middle press with the
+/// settling's sums reordered (see the module documentation); the bound keeps a
+/// quarter over that. A run without the twist substeps leaves ±100 m.
+const FARTHEST: f64 = 0.25;
+
+/// The press's speeds, m/s: 1 m/s and 2% either side.
+const SPEEDS: [f64; 3] = [0.98, 1.0, 1.02];
+/// The tip's offsets along x from the liver's middle, m.
+const OFFSETS: [f64; 3] = [-0.5e-3, 0.0, 0.5e-3];
+/// The press's depth below the tip's start, m.
+const DEPTH: f64 = 0.06;
 
 /// The left tip's height above the liver's middle at `t` (s), m: down from 9 cm at
-/// 1 m/s to 3 cm (reached at 60 ms), held there until 1 s, then back up over half a
-/// second.
-fn tip_z(t: f64) -> f64 {
+/// `speed` to 3 cm (reached at about 60 ms), held there until 1 s, then back up over
+/// half a second.
+fn tip_z(speed: f64, t: f64) -> f64 {
     if t < 1.0 {
-        (0.09 - PRESS_SPEED * t).max(0.09 - DEPTH)
+        (0.09 - speed * t).max(0.09 - DEPTH)
     } else {
         0.09 - DEPTH + DEPTH * ((t - 1.0) / 0.5).min(1.0)
     }
 }
 
-/// The press's speed, m/s.
-const PRESS_SPEED: f64 = 1.0;
-/// The press's depth below the tip's start, m.
-const DEPTH: f64 = 0.06;
+/// What one press saw.
+struct Run {
+    substeps: (u32, u32),
+    farthest: f64,
+    kinetic: f64,
+    end: f64,
+}
 
-#[test]
-fn a_press_that_inverts_elements_stays_bounded_when_stepped_explicitly() {
-    let friction = Some(0.0);
-    let mut sim = common::nearly_incompressible("explicit", friction);
+/// The press at `speed`, the tip `dx` along x, run for [`SECONDS`]; panics on a
+/// fault (a non-finite or runaway state).
+fn press(speed: f64, dx: f64) -> Run {
+    let mut sim = common::nearly_incompressible("explicit", Some(0.0));
     let dt = sim.dt;
     let ticks = (SECONDS / dt).round() as usize;
     let (mut base, mut most) = (u32::MAX, 0);
     let (mut farthest, mut kinetic): (f64, f64) = (0.0, 0.0);
     for k in 1..=ticks {
         let t = k as f64 * dt;
-        sim.set_pose(0, Some(pose([0.0, 0.0, tip_z(t)], [0.0, 0.0, 1.0])));
+        sim.set_pose(0, Some(pose([dx, 0.0, tip_z(speed, t)], [0.0, 0.0, 1.0])));
         let report = sim.tick();
         base = base.min(report.substeps);
         most = most.max(report.substeps);
         let fault = laparo_server::headless::fault(&sim);
-        assert!(
-            fault.is_none(),
-            "friction {friction:?}, tick {k}: {fault:?}"
-        );
+        assert!(fault.is_none(), "{speed} m/s, {dx} m, tick {k}: {fault:?}");
         farthest = farthest.max(sim.max_displacement());
         kinetic = kinetic.max(kinetic_energy(&sim.model, &sim.state));
     }
-    let end = sim.max_displacement();
-    let end_kinetic = kinetic_energy(&sim.model, &sim.state);
-    println!(
-        "friction {friction:?}: substeps {base}–{most}, farthest {:.1} mm, kinetic ≤ {kinetic:.3} J; \
-         at {SECONDS} s {:.1} mm, {end_kinetic:.2e} J",
-        farthest * 1e3,
-        end * 1e3
-    );
-    assert!(
-        most > base,
-        "friction {friction:?}: no tick needed more substeps"
-    );
-    assert!(farthest <= FARTHEST, "friction {friction:?}: {farthest} m");
-    assert!(end <= FARTHEST, "friction {friction:?}: {end} m at the end");
+    Run {
+        substeps: (base, most),
+        farthest,
+        kinetic,
+        end: sim.max_displacement(),
+    }
+}
+
+#[test]
+fn a_press_that_inverts_elements_stays_bounded_when_stepped_explicitly() {
+    let cases: Vec<(f64, f64)> = SPEEDS
+        .iter()
+        .flat_map(|&s| OFFSETS.iter().map(move |&dx| (s, dx)))
+        .collect();
+    // Two threads: the presses are independent and each takes seconds.
+    let runs: Vec<Run> = std::thread::scope(|scope| {
+        let (even, odd): (Vec<_>, Vec<_>) = cases.iter().enumerate().partition(|(k, _)| k % 2 == 0);
+        let other = scope.spawn(move || {
+            odd.into_iter()
+                .map(|(k, &(s, dx))| (k, press(s, dx)))
+                .collect::<Vec<_>>()
+        });
+        let mut runs: Vec<(usize, Run)> = even
+            .into_iter()
+            .map(|(k, &(s, dx))| (k, press(s, dx)))
+            .collect();
+        runs.extend(other.join().expect("the other presses ran"));
+        runs.sort_by_key(|(k, _)| *k);
+        runs.into_iter().map(|(_, r)| r).collect()
+    });
+    for (&(speed, dx), run) in cases.iter().zip(&runs) {
+        println!(
+            "{speed} m/s, x {:+.1} mm: substeps {}–{}, farthest {:.1} mm, kinetic ≤ {:.3} J; at {SECONDS} s {:.1} mm",
+            dx * 1e3,
+            run.substeps.0,
+            run.substeps.1,
+            run.farthest * 1e3,
+            run.kinetic,
+            run.end * 1e3
+        );
+    }
+    for (&(speed, dx), run) in cases.iter().zip(&runs) {
+        assert!(
+            run.substeps.1 > run.substeps.0,
+            "{speed} m/s, {dx} m: no tick needed more substeps"
+        );
+        assert!(
+            run.farthest <= FARTHEST,
+            "{speed} m/s, {dx} m: {} m from rest",
+            run.farthest
+        );
+        assert!(
+            run.end <= FARTHEST,
+            "{speed} m/s, {dx} m: {} m from rest at the end",
+            run.end
+        );
+    }
 }
