@@ -50,7 +50,7 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 
 use super::parts::Parts;
-use super::rotation::{COLD_ITERATIONS, WARM_ITERATIONS, extract_rotation, polar};
+use super::rotation::{WARM_ITERATIONS, cold_rotation, extract_rotation, polar};
 use super::twist;
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
@@ -135,9 +135,7 @@ impl Element {
     /// The element's rotation at `x`: the polar factor of `F`, extracted cold (as
     /// [`negated_force_on`] does).
     pub fn rotation_at(&self, x: &[Point3<f64>]) -> Matrix3<f64> {
-        let mut q = UnitQuaternion::identity();
-        extract_rotation(&self.deformation_gradient(x), &mut q, COLD_ITERATIONS);
-        *q.to_rotation_matrix().matrix()
+        cold_rotation(&self.deformation_gradient(x))
     }
 
     /// `V R σ(Rᵀ F)` for the rotation `r` and the deformation gradient `f`: the
@@ -299,9 +297,7 @@ pub(super) fn strain_energy(elements: &[Element], x: &[Point3<f64>]) -> f64 {
         .iter()
         .map(|e| {
             let f = e.deformation_gradient(x);
-            let mut q = UnitQuaternion::identity();
-            extract_rotation(&f, &mut q, COLD_ITERATIONS);
-            let eps = e.strain(q.to_rotation_matrix().matrix(), &f);
+            let eps = e.strain(&cold_rotation(&f), &f);
             e.volume * (0.5 * e.lambda * eps.trace().powi(2) + e.mu * eps.component_mul(&eps).sum())
         })
         .sum()
@@ -314,10 +310,7 @@ pub(super) fn negated_force(elements: &[Element], x: &[Point3<f64>], out: &mut [
     out.iter_mut().for_each(|o| *o = Vector3::zeros());
     for e in elements {
         let f = e.deformation_gradient(x);
-        let mut q = UnitQuaternion::identity();
-        extract_rotation(&f, &mut q, COLD_ITERATIONS);
-        let r = *q.to_rotation_matrix().matrix();
-        let rs = e.volume * r * e.stress(&r.tr_mul(&f));
+        let rs = e.force_matrix(&cold_rotation(&f), &f);
         for (&v, g) in e.tet.iter().zip(&e.gradients()) {
             out[v as usize] += rs * g;
         }
@@ -382,9 +375,7 @@ pub(super) fn negated_force_on(
     negated_force_on_with(elements, around, v, |k| {
         let e = &elements[k as usize];
         let f = e.deformation_gradient(x);
-        let mut q = UnitQuaternion::identity();
-        extract_rotation(&f, &mut q, COLD_ITERATIONS);
-        e.force_matrix(q.to_rotation_matrix().matrix(), &f)
+        e.force_matrix(&cold_rotation(&f), &f)
     })
 }
 

@@ -430,9 +430,7 @@ impl ElasticModel {
             Formulation::Corotational => {
                 let e = &self.elements[t];
                 let f = e.deformation_gradient(x);
-                let mut q = nalgebra::UnitQuaternion::identity();
-                rotation::extract_rotation(&f, &mut q, rotation::COLD_ITERATIONS);
-                e.strain(q.to_rotation_matrix().matrix(), &f)
+                e.strain(&rotation::cold_rotation(&f), &f)
             }
         }
     }

@@ -69,6 +69,15 @@ pub fn extract_rotation(f: &Matrix3<f64>, q: &mut UnitQuaternion<f64>, max_itera
     polar(f, q, max_iterations).iterations
 }
 
+/// The rotation of the polar decomposition of `f`, extracted cold: from the
+/// identity, in at most [`COLD_ITERATIONS`] steps. What a force or a strain needs
+/// that must not depend on the rotations a solver carried.
+pub fn cold_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+    let mut q = UnitQuaternion::identity();
+    extract_rotation(f, &mut q, COLD_ITERATIONS);
+    *q.to_rotation_matrix().matrix()
+}
+
 /// What [`polar`] found: the rotation and what the forces need of it.
 #[derive(Clone, Copy, Debug)]
 pub struct Polar {
