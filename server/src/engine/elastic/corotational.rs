@@ -105,9 +105,17 @@ impl Element {
     #[inline]
     pub fn deformation_gradient(&self, x: &[Point3<f64>]) -> Matrix3<f64> {
         let x0 = x[self.tet[0] as usize];
+        self.edge_gradient(|v| x[v] - x0)
+    }
+
+    /// `Σ_{k≥1} d(v_k) g_kᵀ` for the element's vertices `v_k`: the gradient of a field
+    /// given by its differences from vertex 0, `d(v) = x_v − x₀` (the deformation
+    /// gradient) or `p_v − p₀` (its variation `δF` in the tangent).
+    #[inline]
+    fn edge_gradient(&self, d: impl Fn(usize) -> Vector3<f64>) -> Matrix3<f64> {
         let mut f = Matrix3::zeros();
         for k in 0..3 {
-            f += (x[self.tet[k + 1] as usize] - x0) * self.g[k].transpose();
+            f += d(self.tet[k + 1] as usize) * self.g[k].transpose();
         }
         f
     }
@@ -156,10 +164,7 @@ impl Element {
         out: &mut [Vector3<f64>],
     ) {
         let p0 = p[self.tet[0] as usize];
-        let mut df = Matrix3::zeros();
-        for k in 0..3 {
-            df += (p[self.tet[k + 1] as usize] - p0) * self.g[k].transpose();
-        }
+        let df = self.edge_gradient(|v| p[v] - p0);
         // σ(Rᵀ δF + I) is the stress of ε = sym(Rᵀ δF): linear in δF.
         let m = self.volume * r * self.stress(&(r.tr_mul(&df) + Matrix3::identity()));
         self.scatter(&m, |v, f| out[v] += f);
