@@ -9,6 +9,19 @@
 //! behind the tip. If the axis meets the surface again further up, the next triangle
 //! follows (a fold), a few times at most.
 //!
+//! When it acts. A press that comes in from outside at the speed of a hand is taken
+//! first by the push-out (§2.6) and the faces, whose held vertices then follow the
+//! instrument, so the axis point never falls short of the plane and nothing here
+//! moves: the convergence bench (tip 8 and 15 mm, shaft 10 mm, ramped from 1 cm out)
+//! prints the same digits when this press instead moves only the axis point onto the
+//! plane by least norm, as the faces do (measured). What it moves is a first pose
+//! inside the liver and a jab of more than a radius in one tick; there a coarse
+//! triangle laid whole on the plane moves vertices several radii from the axis (2 cm
+//! first pose, liver at 100 kPa, ν 0.49: a vertex 4.6 r off the axis jumps 2 cm and
+//! inverts two elements). The least-norm move cut that case's largest force from 486
+//! to 104 N but let a jab at ν 0.499 go after 0.05 s and a deep fast pivot hold the
+//! liver 1 s after withdrawal, so the paper's plane stays.
+//!
 //! A triangle seen nearly edge-on (`n·Z` small) would be thrown far along `Z`; below
 //! [`GRAZING`] the triangle's own face normal is used if it faces the instrument
 //! better, and if neither does the triangle is left to the push-out of §2.6.
