@@ -197,7 +197,7 @@ fn without_settling_the_first_contact_tick_spikes() {
     );
 }
 
-/// An instrument whose first pose is already 2 cm into the free front (the tip's
+/// An instrument whose first pose is already 1–3 cm into the free front (the tip's
 /// foremost point past the front vertex, axis +z), held there: its first tick reports
 /// within 2× of the force it settles to. (Not every tick after: from the liver
 /// sagged under gravity first, the default scene's third tick retakes a vertex with
@@ -210,13 +210,30 @@ fn without_settling_the_first_contact_tick_spikes() {
 /// ν = 0.49, 264 N against 16.6 N (15.9× with Newton passes on the tick's own
 /// tangent); the linear model, settled the same way, 0.52 N against 0.61 N. At
 /// ν = 0.499 it is still 69× (see `settle.rs`), so that is not in the list.
+///
+/// The poses are 1, 2 and 3 cm in; the linear model, which has no Newton passes,
+/// only 1 and 2 cm: at 3 cm its first tick gives 2.68 N against 1.04 N steady
+/// (2.6×; corotational 0.51 N against 0.91 N). Deeper poses do not indent: the
+/// lobe's back face is 20–33 mm behind the front vertex within 12 mm of the axis,
+/// and on the axis between 3 and 4 cm. At 4 and 6 cm the tip is past it, the axis
+/// meets that face first (`n·Z = −0.75` at the tip contact; at 1–3 cm the tip
+/// contact is never reported) and the instrument skewers the lobe, which no push of
+/// a triangle clears (`faces.rs`). Their first ticks, 6.44 and 9.86 N against 1.07
+/// and 2.57 N steady, are not a press's.
 #[test]
-fn a_first_pose_2_cm_inside_reports_within_twice_its_steady_force() {
-    for (formulation, integrator) in [
-        (Formulation::Corotational, "implicit"),
-        (Formulation::Corotational, "explicit"),
-        (Formulation::Linear, "implicit"),
-    ] {
+fn a_first_pose_inside_reports_within_twice_its_steady_force() {
+    // How far into the free front the first poses are, m: 3 cm is the deepest that
+    // indents the lobe rather than skewering it; the linear model's first tick at
+    // 3 cm is 2.6× its steady force (see above).
+    let all = [0.01, 0.02, 0.03];
+    for (formulation, integrator, depth) in [
+        (Formulation::Corotational, "implicit", &all[..]),
+        (Formulation::Corotational, "explicit", &all[..]),
+        (Formulation::Linear, "implicit", &all[..2]),
+    ]
+    .into_iter()
+    .flat_map(|(f, i, depths)| depths.iter().map(move |&d| (f, i, d)))
+    {
         let mut scene = Scene::default_scene();
         scene.material.model = formulation;
         let (e, nu) = (scene.material.young_modulus, scene.material.poisson_ratio);
@@ -224,7 +241,7 @@ fn a_first_pose_2_cm_inside_reports_within_twice_its_steady_force() {
         scene.instruments.truncate(1);
         let mut sim = scene.build().unwrap();
         let r = sim.instruments[0].radius;
-        let press = common::contact::front_press(&sim, false, 0.02, r);
+        let press = common::contact::front_press(&sim, false, depth, r);
         let forces: Vec<f64> = (0..60)
             .map(|_| {
                 sim.set_pose(0, Some(press));
@@ -234,7 +251,10 @@ fn a_first_pose_2_cm_inside_reports_within_twice_its_steady_force() {
             .collect();
         let steady = forces[forces.len() - 1];
         let largest = forces.iter().copied().fold(0.0, f64::max);
-        let case = format!("{formulation:?} {integrator}, E {e} Pa, ν {nu}");
+        let case = format!(
+            "{formulation:?} {integrator}, E {e} Pa, ν {nu}, {:.0} cm",
+            depth * 1e2
+        );
         println!(
             "{case}: first {:.3} N, largest {largest:.3} N, steady {steady:.3} N; first ticks {:.3?}",
             forces[0],
