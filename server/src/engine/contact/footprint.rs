@@ -1,13 +1,16 @@
 //! The instrument's footprint: the press of its own tip and shaft, not of the patch
 //! of vertices the mesh holds.
 //!
-//! The tip press (§2.5) lays the whole triangle under the tip on the tip plane, and
-//! the push-out holds the vertices nearest the instrument: a mesh whose edges are
-//! longer than the tip's radius imposes the tip's motion on a patch of surface wider
-//! than the tip. The elastic reaction of that patch is the force of a wider punch.
-//! For a rigid flat punch of radius `a` stuck to an elastic half-space, the force of
-//! an indentation `d` is `2 E* a d` (Sneddon 1965) and that of a sideways shift `δ`
-//! is `8 G a δ / (2 − ν)` (Mindlin 1949): at a given motion both grow with the
+//! The push-out holds the vertices the instrument enters and, through the faces
+//! (`faces`), every vertex of a triangle whose interior it enters; a first pose
+//! inside or a jab has the tip press (§2.5) lay the whole triangle under the tip on
+//! the tip plane (in the convergence bench's presses, ramped in from outside, that
+//! press moves nothing: see `tip`). So a mesh whose edges are longer than the tip's
+//! radius imposes the tip's motion on a patch of surface wider than the tip. The
+//! elastic reaction of that patch is the force of a wider punch. For a rigid flat
+//! punch of radius `a` stuck to an elastic half-space, the force of an indentation
+//! `d` is `2 E* a d` (Sneddon 1965) and that of a sideways shift `δ` is
+//! `8 G a δ / (2 − ν)` (Mindlin 1949): at a given motion both grow with the
 //! footprint's radius, and a body's shape adds a factor that does not depend on `a`
 //! while `a` is small beside the body. So the tissue's force on the tip's end is
 //! taken as the held patch's elastic reactions scaled by `min(1, r / a_h)`, where
