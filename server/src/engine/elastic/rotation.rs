@@ -247,12 +247,6 @@ mod tests {
     use super::*;
     use nalgebra::Rotation3;
 
-    fn cold(f: &Matrix3<f64>) -> Matrix3<f64> {
-        let mut q = UnitQuaternion::identity();
-        extract_rotation(f, &mut q, COLD_ITERATIONS);
-        *q.to_rotation_matrix().matrix()
-    }
-
     #[test]
     fn polar_rotation_of_a_stretched_rotation_is_the_rotation() {
         // F = R S with S symmetric positive definite: the extraction returns R.
@@ -260,7 +254,7 @@ mod tests {
         for axis in [Vector3::x(), Vector3::new(1.0, 2.0, -0.5), Vector3::z()] {
             for angle in [0.0, 0.3, std::f64::consts::FRAC_PI_2, 2.5, 3.1] {
                 let r = *Rotation3::new(axis.normalize() * angle).matrix();
-                let got = cold(&(r * s));
+                let got = cold_rotation(&(r * s));
                 assert!((got - r).norm() <= 1e-10, "angle {angle}: {got} vs {r}");
             }
         }
@@ -272,7 +266,7 @@ mod tests {
         // Irving et al. factor U diag(1, 1, −1) Vᵀ.
         let r0 = *Rotation3::new(Vector3::new(0.2, -0.4, 0.7)).matrix();
         let f = r0 * Matrix3::from_diagonal(&Vector3::new(1.1, 0.9, -0.2));
-        let r = cold(&f);
+        let r = cold_rotation(&f);
         assert!((r.determinant() - 1.0).abs() <= 1e-12);
         assert!((r.transpose() * r - Matrix3::identity()).norm() <= 1e-12);
         let s = r.transpose() * f;
@@ -284,7 +278,7 @@ mod tests {
     #[test]
     fn degenerate_and_collapsed_elements_keep_a_finite_rotation() {
         let flat = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0);
-        let r = cold(&flat);
+        let r = cold_rotation(&flat);
         assert!((r.determinant() - 1.0).abs() <= 1e-12 && r.iter().all(|v| v.is_finite()));
         let mut q = UnitQuaternion::from_scaled_axis(Vector3::new(0.1, 0.2, 0.3));
         let before = q;

@@ -3,10 +3,10 @@
 //! extracted afresh at each point; and the closed forms of a uniform stretch and
 //! an inverted element.
 
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::corotational::Element;
-use super::rotation::{COLD_ITERATIONS, extract_rotation};
+use super::rotation::cold_rotation;
 use super::twist::{stretch, twist_ratio, twist_ratio_bound};
 use crate::engine::material::Material;
 
@@ -32,15 +32,9 @@ fn lame(nu: f64) -> (f64, f64) {
     .lame()
 }
 
-fn polar(f: &Matrix3<f64>) -> Matrix3<f64> {
-    let mut q = UnitQuaternion::identity();
-    extract_rotation(f, &mut q, COLD_ITERATIONS);
-    *q.to_rotation_matrix().matrix()
-}
-
 /// The corotated energy density `ψ = ½ λ tr²ε + μ ε:ε` at `f`.
 fn energy(e: &Element, f: &Matrix3<f64>) -> f64 {
-    let eps = e.strain(&polar(f), f);
+    let eps = e.strain(&cold_rotation(f), f);
     0.5 * e.lambda * eps.trace().powi(2) + e.mu * eps.component_mul(&eps).sum()
 }
 
@@ -50,7 +44,7 @@ fn a_rotation_has_no_twist_stiffness() {
     let e = element(lambda, mu);
     for turn in [0.0, 0.3, 2.0, 3.1] {
         let r = *Rotation3::new(Vector3::new(0.2, -1.0, 0.5).normalize() * turn).matrix();
-        let ratio = twist_ratio(&e, &stretch(&polar(&r), &r));
+        let ratio = twist_ratio(&e, &stretch(&cold_rotation(&r), &r));
         assert!(ratio <= 1e-12, "turn {turn}: {ratio}");
     }
 }
@@ -65,7 +59,7 @@ fn a_uniform_stretch_has_the_closed_form_ratio_at_any_turn() {
             let exact = (3.0 * lambda + 2.0 * mu) * (a - 1.0f64).abs() / (a * (lambda + 2.0 * mu));
             let q = *Rotation3::new(Vector3::new(0.7, 0.1, -0.4)).matrix();
             let f = q * Matrix3::identity() * a;
-            let ratio = twist_ratio(&e, &stretch(&polar(&f), &f));
+            let ratio = twist_ratio(&e, &stretch(&cold_rotation(&f), &f));
             assert!(
                 (ratio - exact).abs() <= 1e-9 * exact.max(1.0),
                 "ν {nu}, a {a}: {ratio} against {exact}"
@@ -105,7 +99,7 @@ fn an_inverted_element_passes_the_linear_bound_as_its_energy_says() {
         );
         largest = largest.max(twist.abs());
     }
-    let ratio = twist_ratio(&e, &stretch(&polar(&f), &f));
+    let ratio = twist_ratio(&e, &stretch(&cold_rotation(&f), &f));
     assert!((ratio - largest / (lambda + 2.0 * mu)).abs() <= 1e-9 * ratio);
     assert!(ratio > 1.0, "inverted at ν 0.45: {ratio}");
 }
@@ -129,7 +123,7 @@ fn the_cheap_bound_is_never_below_the_ratio() {
                 0.3 * (0.43 * x).sin(),
                 0.9 * (0.29 * x).sin(),
             );
-            let s = stretch(&polar(&f), &f);
+            let s = stretch(&cold_rotation(&f), &f);
             let (ratio, bound) = (twist_ratio(&e, &s), twist_ratio_bound(&e, &s));
             assert!(
                 bound >= ratio * (1.0 - 1e-12) || ratio.is_nan(),
