@@ -25,7 +25,7 @@ pub mod twist;
 pub use assemble::{shape_gradients, tet_stiffness};
 pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
 pub use parts::{MIN_PART_VERTICES, Parts, part_count};
-pub use stress::{tet_displacements, von_mises_of_strain, von_mises_stress};
+pub use stress::{small_strain, tet_displacements, von_mises_of_strain};
 
 use std::ops::Range;
 
@@ -420,12 +420,7 @@ impl ElasticModel {
         match self.formulation {
             Formulation::Linear => {
                 let (g, _) = shape_gradients(&self.rest, mesh_tets[t]);
-                let u = tet_displacements(x, &self.rest, mesh_tets[t]);
-                let mut grad = Matrix3::zeros();
-                for k in 0..4 {
-                    grad += u[k] * g[k].transpose();
-                }
-                0.5 * (grad + grad.transpose())
+                small_strain(&g, tet_displacements(x, &self.rest, mesh_tets[t]))
             }
             Formulation::Corotational => {
                 let e = &self.elements[t];

@@ -4,21 +4,15 @@ use nalgebra::{Matrix3, Point3, Vector3};
 
 use crate::engine::material::Material;
 
-/// Von Mises equivalent stress (Pa) of a tetrahedron whose vertices are displaced by
-/// `u` (m), given its shape-function gradients `g`.
-///
-/// Linear elements have constant strain: `ε = sym(Σ_k u_k g_kᵀ)`,
-/// `σ = λ tr(ε) I + 2μ ε`, deviator `s = σ − tr(σ)/3 I`, and `σ_vM = √(3/2 s:s)`.
-pub fn von_mises_stress(g: &[Vector3<f64>; 4], u: [Vector3<f64>; 4], material: &Material) -> f64 {
-    let (lambda, mu) = material.lame();
+/// The small strain of a tetrahedron whose vertices are displaced by `u` (m), given
+/// its shape-function gradients `g`: linear elements have constant strain,
+/// `ε = sym(Σ_k u_k g_kᵀ)`.
+pub fn small_strain(g: &[Vector3<f64>; 4], u: [Vector3<f64>; 4]) -> Matrix3<f64> {
     let mut grad = Matrix3::zeros();
     for k in 0..4 {
         grad += u[k] * g[k].transpose();
     }
-    let eps = 0.5 * (grad + grad.transpose());
-    let sigma = Matrix3::identity() * (lambda * eps.trace()) + 2.0 * mu * eps;
-    let s = sigma - Matrix3::identity() * (sigma.trace() / 3.0);
-    (1.5 * s.component_mul(&s).sum()).sqrt()
+    0.5 * (grad + grad.transpose())
 }
 
 /// Displacements of a tetrahedron's vertices: `x_k − X_k`.
