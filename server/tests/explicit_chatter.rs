@@ -21,12 +21,13 @@
 //! for the rest of the hold.
 //!
 //! Checked here, for both integrators and both gestures, with the scene's friction
-//! and (the press only) without:
+//! and without:
 //! - from the first touch to the end the tip always holds something;
 //! - over the last half second the held set does not change;
-//! - no tick's force exceeds the end's by more than half for the press, or twice it
-//!   for the jab (issue 15's bound on a first contact: a retake's jump gave 11–44
-//!   times it);
+//! - the first touch's force is at most twice the end's (issue 15's bound on a
+//!   first contact), and no tick's force exceeds the end's by more than half for the
+//!   press, or twice it for the jab (2.5 times without friction, see the test): a
+//!   retake's jump gave 11–44 times it;
 //! - at the end the explicit and implicit forces agree within 1% for the press: both
 //!   hold the same vertices in equilibrium, where the two integrators must reach the
 //!   same static answer (3% for the jab, whose held vertices stick where its first
@@ -52,6 +53,8 @@ const SECONDS: f64 = 2.0;
 
 /// What one run shows.
 struct Hold {
+    /// The force on the tick of the first touch, N.
+    first: f64,
     /// The force at the end of the hold, N.
     end: f64,
     /// The largest force of any tick, N.
@@ -63,7 +66,7 @@ fn press(integrator: &str, friction: Option<f64>, speed: f64) -> Hold {
     let dt = sim.dt;
     let ticks = (SECONDS / dt).round() as usize;
     let settled_from = ((SECONDS - 0.5) / dt).round() as usize;
-    let (mut touched, mut largest, mut settled) = (None, 0.0f64, None);
+    let (mut touched, mut first, mut largest, mut settled) = (None, 0.0, 0.0f64, None);
     for k in 1..=ticks {
         let t = k as f64 * dt;
         sim.set_pose(0, Some(pose([0.0, 0.0, tip_z(t, speed)], [0.0, 0.0, 1.0])));
@@ -78,6 +81,7 @@ fn press(integrator: &str, friction: Option<f64>, speed: f64) -> Hold {
         held.sort_unstable();
         if touched.is_none() && !held.is_empty() {
             touched = Some(t);
+            first = ins.report.reaction.norm();
         }
         assert!(
             touched.is_none() || !held.is_empty(),
@@ -101,12 +105,16 @@ fn press(integrator: &str, friction: Option<f64>, speed: f64) -> Hold {
     let end = sim.instruments[0].report.reaction.norm();
     println!(
         "{integrator}, friction {friction:?}, {speed} m/s: first touch {:.3} s, {} held \
-         at the end, {end:.3} N, largest {largest:.3} N",
+         at the end, {end:.3} N, first {first:.3} N, largest {largest:.3} N",
         touched.unwrap_or(f64::NAN),
         sim.instruments[0].held.len()
     );
     assert!(touched.is_some(), "{integrator}: the press touched nothing");
-    Hold { end, largest }
+    Hold {
+        first,
+        end,
+        largest,
+    }
 }
 
 #[test]
@@ -116,22 +124,38 @@ fn a_deep_press_on_nearly_incompressible_tissue_holds_steadily_stepped_either_wa
 
 #[test]
 fn a_deep_jab_on_nearly_incompressible_tissue_holds_steadily_stepped_either_way() {
-    // The scene's friction only: without friction the explicit jab still lets go
-    // on its third tick and catches the tissue again with 12 N (5× the hold), then
-    // holds one vertex where the implicit step holds two (2.76 N against 1.87 N).
-    // With friction the held vertices stick where the jab's first ticks left them,
-    // which the two integrators' transients set apart by a little: 2.3% in force.
+    // With the scene's friction the held vertices stick where the jab's first ticks
+    // left them, which the two integrators' transients set apart by a little: 2.3%
+    // in force.
     both_ways(JAB, &[None], 2.0, 0.03);
+    // Without friction the same two vertices are held from the second tick to the
+    // end by both integrators (this once let go on the explicit step's third tick
+    // and caught the tissue again with 12 N, 5× the hold). The ticks after the
+    // first touch, while the tip arrives, give what they give with friction
+    // (3.8–4.0 N), but the held vertices then slide until the drag is gone, and the
+    // hold ends lower, 1.87–1.88 N: 2.0–2.1× below those ticks, so the bound on any
+    // tick is 2.5× here. A retake would still pass it several times over.
+    both_ways(JAB, &[Some(0.0)], 2.5, 0.03);
 }
 
+/// The first-contact tick's force against the hold's, at most: issue 15's bound.
+const FIRST_TOUCH: f64 = 2.0;
+
 /// The gesture at `speed` stepped both ways with each friction (`None`: the
-/// scene's): no tick above `bound` times the end's force, and the two ends within
-/// `agree` of each other.
+/// scene's): the first touch within [`FIRST_TOUCH`] and no tick above `bound` times
+/// the end's force, and the two ends within `agree` of each other.
 fn both_ways(speed: f64, frictions: &[Option<f64>], bound: f64, agree: f64) {
     for &friction in frictions {
         let implicit = press("implicit", friction, speed);
         let explicit = press("explicit", friction, speed);
         for (name, run) in [("implicit", &implicit), ("explicit", &explicit)] {
+            assert!(
+                run.first <= FIRST_TOUCH * run.end,
+                "{name}, friction {friction:?}, {speed} m/s: the first touch gave {} N, \
+                 the hold ends at {} N",
+                run.first,
+                run.end
+            );
             assert!(
                 run.largest <= bound * run.end,
                 "{name}, friction {friction:?}, {speed} m/s: a tick gave {} N, the hold \
