@@ -52,6 +52,7 @@ use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
 use super::parts::Parts;
 use super::rotation::{WARM_ITERATIONS, cold_rotation, extract_rotation, polar};
 use super::twist;
+use super::twist_tangent::{self, TwistTangent};
 use super::{BlockMatrix, ElasticModel};
 use crate::engine::material::Material;
 use crate::engine::workers::{Disjoint, Workers, share};
@@ -452,6 +453,10 @@ pub struct Corotated {
     reassembled: usize,
     /// The elements split for threads (one part unless [`set_parts`](Self::set_parts)).
     parts: Parts,
+    /// Whether each element's twist may pass [`twist_tangent::FROM`] at `x₀`.
+    twisted: Vec<bool>,
+    /// The positive twist modes of those elements at `x₀`, for the implicit step.
+    pub twist: TwistTangent,
 }
 
 impl Corotated {
@@ -469,6 +474,8 @@ impl Corotated {
                 1,
                 model.elements.iter().map(|e| e.tet),
             ),
+            twisted: vec![false; model.elements.len()],
+            twist: TwistTangent::new(model.elements.len()),
         }
     }
 
@@ -586,7 +593,8 @@ impl Corotated {
     /// The pass both updates make: each element's rotation extracted (warm-started)
     /// and its force added to `out`, then `tangent(element, rotation, assembled
     /// rotation, add to K̂'s block)`, which says whether it assembled the element's
-    /// share; `x` and `out` kept for [`row`](Self::row).
+    /// share; then the twist modes of the elements strongly deformed at `x`
+    /// ([`twist_tangent`]); `x` and `out` kept for [`row`](Self::row).
     #[inline]
     fn update_with(
         &mut self,
@@ -604,6 +612,7 @@ impl Corotated {
     ) {
         let blocks = Disjoint::new(&mut self.tangent.block);
         let assembled = Disjoint::new(&mut self.assembled);
+        let twisted = Disjoint::new(&mut self.twisted);
         self.reassembled = each_element(
             model,
             &self.parts,
@@ -611,13 +620,26 @@ impl Corotated {
             x,
             out,
             workers,
-            |e, k, q| {
+            |e, k, q, a| {
+                // SAFETY: element `k`'s entries are its own.
+                unsafe {
+                    *twisted.at(k) = twist::twist_ratio_bound(e, &(0.5 * (a + a.transpose())))
+                        > twist_tangent::FROM;
+                }
                 // SAFETY: element `k`'s blocks lie in the rows of its part's vertices
                 // (or it is a crossing element, handled alone), and `k` is its own.
                 let qa = unsafe { assembled.at(k) };
                 tangent(e, q, qa, &mut |slot, b| unsafe { *blocks.at(slot) += b })
             },
         );
+        self.twist.clear();
+        for (k, flagged) in self.twisted.iter().enumerate() {
+            if *flagged {
+                let e = &model.elements[k];
+                let r = self.rotation[k].to_rotation_matrix();
+                self.twist.add(e, r.matrix(), &e.deformation_gradient(x));
+            }
+        }
         self.at.copy_from_slice(x);
         self.force_at.copy_from_slice(out);
     }
@@ -637,6 +659,8 @@ impl Corotated {
         self.tangent.heap_bytes()
             + (self.at.capacity() + self.force_at.capacity()) * 24
             + self.rotation.capacity() * std::mem::size_of::<UnitQuaternion<f64>>()
+            + self.twisted.capacity()
+            + self.twist.heap_bytes()
     }
 
     /// Extracts every element's rotation at `x` and writes
@@ -662,13 +686,14 @@ impl Corotated {
             x,
             out,
             workers,
-            |_, _, _| false,
+            |_, _, _, _| false,
         );
     }
 }
 
 /// Extracts each element's rotation at `x` (warm-started from `rotation`) and adds
-/// its force to `out` (zeroed first), then calls `then(element, index, rotation)`;
+/// its force to `out` (zeroed first), then calls `then(element, index, rotation,
+/// Rᵀ F)`;
 /// returns how many calls said true. The elements of each of `parts` run on one of
 /// `workers`, then the crossing ones on this thread.
 fn each_element(
@@ -678,7 +703,7 @@ fn each_element(
     x: &[Point3<f64>],
     out: &mut [Vector3<f64>],
     workers: Option<&Workers>,
-    then: impl Fn(&Element, usize, &UnitQuaternion<f64>) -> bool + Sync,
+    then: impl Fn(&Element, usize, &UnitQuaternion<f64>, &Matrix3<f64>) -> bool + Sync,
 ) -> usize {
     out.iter_mut().for_each(|o| *o = Vector3::zeros());
     let forces = Disjoint::new(out);
@@ -696,7 +721,7 @@ fn each_element(
             e.scatter(&(e.volume * p.r * e.stress(&p.a)), |v, f| unsafe {
                 *forces.at(v) += f
             });
-            if then(e, k, q) {
+            if then(e, k, q, &p.a) {
                 count += 1;
             }
         }

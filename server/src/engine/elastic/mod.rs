@@ -21,6 +21,7 @@ pub mod parts;
 pub mod rotation;
 mod stress;
 pub mod twist;
+pub mod twist_tangent;
 
 pub use assemble::{shape_gradients, tet_stiffness};
 pub use corotational::{Corotated, Element, TANGENT_TURN, VertexElements};
@@ -542,6 +543,8 @@ mod tests_shared;
 mod tests_tangent;
 #[cfg(test)]
 mod tests_twist;
+#[cfg(test)]
+mod tests_twist_tangent;
 
 /// A stored block of a [`BlockMatrix`] as its product reads it: `K u` and `Kᵀ u` in
 /// f64, whatever the block is stored in. An f32 block is widened exactly (every

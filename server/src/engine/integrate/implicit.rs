@@ -13,6 +13,17 @@
 //! its unconditional stability; the lag of the rotations by one tick is first order in
 //! the tick's rotation increment and vanishes at rest.
 //!
+//! `K̂` holds nothing of the energy's twist modes, whose stiffness grows without bound
+//! in an element pressed through its flat state; there the frozen step overshot and
+//! the tissue cycled with period two (two instruments crossing deep in the liver,
+//! held still: 8.2 ↔ 8.9 N on alternate ticks). The products therefore add the
+//! positive twists of the strongly deformed elements,
+//! [`TwistTangent`](crate::engine::elastic::twist_tangent::TwistTangent): the step is
+//! then one Newton step of backward Euler on the energy's Hessian with its negative
+//! twists set to zero, still symmetric positive definite. The preconditioner's
+//! diagonal blocks leave them out (any symmetric positive definite preconditioner
+//! serves).
+//!
 //! The matrix is symmetric positive definite for any `h > 0`, so the step is
 //! unconditionally stable and dissipative: stiff tissue and long ticks only cost CG
 //! iterations. Imposed vertices get `v₁ = (target − x₀)/h`, which lands them exactly on
@@ -51,7 +62,7 @@ pub(super) fn step(
     // f = K u₀ (linear), or f = K̂ u₀ + o with the rotations of x₀, which then stay
     // frozen over the tick: K is K̂ below, and K̂ changes every tick.
     let corotational = it.corotated.is_some();
-    let k = match &mut it.corotated {
+    let (k, twist) = match &mut it.corotated {
         Some(c) => {
             c.update_shared(
                 model,
@@ -60,12 +71,12 @@ pub(super) fn step(
                 it.tangent_turn,
                 it.workers.as_ref(),
             );
-            &c.tangent
+            (&c.tangent, Some(&c.twist))
         }
         None => {
             state.displacement_into(model, &mut it.u);
             model.stiffness.mul(&it.u, &mut it.f);
-            &model.stiffness
+            (&model.stiffness, None)
         }
     };
     let (workers, parts) = (it.workers.as_ref(), &it.parts);
@@ -123,6 +134,9 @@ pub(super) fn step(
             k.mul_shared(workers, parts, a, h * h, p, out);
         } else {
             k.mul_shared_by(blocks32, workers, parts, a, h * h, p, out);
+        }
+        if let Some(twist) = twist {
+            twist.mul_add(h * h, p, out);
         }
     };
     let report = it.cg.solve_shared(
