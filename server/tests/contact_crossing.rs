@@ -13,10 +13,12 @@
 //! the positive twists in the step's tangent (`elastic/twist_tangent.rs`) it is
 //! steady to the digit printed.
 //!
-//! Not checked here: with the shafts 0.1 rad apart, and 20 cm at 0.05 rad, the held
+//! Not checked here: with the shafts 0.1 rad apart (at 20, 24 and 26 cm), the held
 //! sets themselves change every tick (the tip lays one coarse triangle on its end,
-//! then another), and the force with them, 4–29% a tick. That is issue 15's
-//! contact on the face under the tip, not the step.
+//! then another), and the force with them, 4–29% a tick (3–69% before the twists).
+//! At 20 cm and 0.05 rad they did not before the twists and do since (6% and 16%),
+//! while at 24 and 26 cm and 0.05 rad they did (3–31%) and no longer do. That is
+//! issue 15's contact on the face under the tip, not the step.
 
 mod common;
 
