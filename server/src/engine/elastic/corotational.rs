@@ -124,7 +124,7 @@ impl Element {
     /// Small-strain stress `σ = λ tr(ε) I + 2μ ε` of `ε = sym(a) − I`, Pa.
     #[inline]
     pub(super) fn stress(&self, a: &Matrix3<f64>) -> Matrix3<f64> {
-        let eps = 0.5 * (a + a.transpose()) - Matrix3::identity();
+        let eps = twist::symmetric(a) - Matrix3::identity();
         Matrix3::identity() * (self.lambda * eps.trace()) + 2.0 * self.mu * eps
     }
 
@@ -174,8 +174,7 @@ impl Element {
     /// Strain `ε = sym(Rᵀ F) − I` for rotation `r`.
     #[inline]
     pub fn strain(&self, r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
-        let a = r.tr_mul(f);
-        0.5 * (a + a.transpose()) - Matrix3::identity()
+        twist::stretch(r, f) - Matrix3::identity()
     }
 
     /// Adds this element's stored blocks of `K̂` with rotation `r` to `blocks`:
@@ -455,8 +454,9 @@ pub struct Corotated {
     parts: Parts,
     /// Whether each element's twist may pass [`twist_tangent::FROM`] at `x₀`.
     twisted: Vec<bool>,
-    /// The positive twist modes of those elements at `x₀`, for the implicit step.
-    pub twist: TwistTangent,
+    /// The positive twist modes of those elements at `x₀`, as
+    /// [`update_twist`](Self::update_twist) last built them.
+    twist: TwistTangent,
 }
 
 impl Corotated {
@@ -593,8 +593,9 @@ impl Corotated {
     /// The pass both updates make: each element's rotation extracted (warm-started)
     /// and its force added to `out`, then `tangent(element, rotation, assembled
     /// rotation, add to K̂'s block)`, which says whether it assembled the element's
-    /// share; then the twist modes of the elements strongly deformed at `x`
-    /// ([`twist_tangent`]); `x` and `out` kept for [`row`](Self::row).
+    /// share, and flags the elements whose twist may pass [`twist_tangent::FROM`]
+    /// (for [`update_twist`](Self::update_twist)); `x` and `out` kept for
+    /// [`row`](Self::row).
     #[inline]
     fn update_with(
         &mut self,
@@ -623,8 +624,8 @@ impl Corotated {
             |e, k, q, a| {
                 // SAFETY: element `k`'s entries are its own.
                 unsafe {
-                    *twisted.at(k) = twist::twist_ratio_bound(e, &(0.5 * (a + a.transpose())))
-                        > twist_tangent::FROM;
+                    *twisted.at(k) =
+                        twist::twist_ratio_bound(e, &twist::symmetric(a)) > twist_tangent::FROM;
                 }
                 // SAFETY: element `k`'s blocks lie in the rows of its part's vertices
                 // (or it is a crossing element, handled alone), and `k` is its own.
@@ -632,16 +633,31 @@ impl Corotated {
                 tangent(e, q, qa, &mut |slot, b| unsafe { *blocks.at(slot) += b })
             },
         );
+        self.at.copy_from_slice(x);
+        self.force_at.copy_from_slice(out);
+    }
+
+    /// Builds the positive twist modes ([`twist_tangent`]) of the elements the last
+    /// update flagged, at its positions `x₀` and rotations, for the implicit step
+    /// ([`twist`](Self::twist)). The flags come from the update's element pass (a
+    /// Gershgorin bound, cheap); the eigenvalues taken here are not, so only the
+    /// implicit step asks for them: the explicit step's substeps and the static
+    /// solve's iterations do without.
+    pub fn update_twist(&mut self, model: &ElasticModel) {
         self.twist.clear();
         for (k, flagged) in self.twisted.iter().enumerate() {
             if *flagged {
                 let e = &model.elements[k];
                 let r = self.rotation[k].to_rotation_matrix();
-                self.twist.add(e, r.matrix(), &e.deformation_gradient(x));
+                self.twist
+                    .add(e, r.matrix(), &e.deformation_gradient(&self.at));
             }
         }
-        self.at.copy_from_slice(x);
-        self.force_at.copy_from_slice(out);
+    }
+
+    /// The twist modes [`update_twist`](Self::update_twist) last built (none before).
+    pub fn twist(&self) -> &TwistTangent {
+        &self.twist
     }
     /// Row `i` of `K̂ u + o` at `x` with the rotations of the last
     /// [`update`](Self::update): `f₀_i + Σ_j K̂_ij (x_j − x₀_j)`, N (exact: with

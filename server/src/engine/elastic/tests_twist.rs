@@ -10,8 +10,9 @@ use super::rotation::cold_rotation;
 use super::twist::{stretch, twist_ratio, twist_ratio_bound};
 use crate::engine::material::Material;
 
-/// An element of Lamé coefficients `λ`, `μ` (only they matter here).
-fn element(lambda: f64, mu: f64) -> Element {
+/// An element of volume 1 and Lamé coefficients `λ`, `μ`, vertex 0 at the origin
+/// and `g_k = e_k` (so `F` is the matrix of the edges from vertex 0).
+pub(super) fn element(lambda: f64, mu: f64) -> Element {
     Element {
         tet: [0, 1, 2, 3],
         g: [Vector3::x(), Vector3::y(), Vector3::z()],

@@ -9,17 +9,9 @@ use super::corotational::Element;
 use super::rotation::cold_rotation;
 use super::twist_tangent::TwistTangent;
 
-/// One element of volume 1, vertex 0 at the origin and `g_k = e_k` (`F` is the
-/// matrix of the edges from vertex 0), with `λ = 4μ` (ν = 0.4).
+/// The element of [`tests_twist`](super::tests_twist) with `λ = 4μ` (ν = 0.4).
 fn element() -> Element {
-    Element {
-        tet: [0, 1, 2, 3],
-        g: [Vector3::x(), Vector3::y(), Vector3::z()],
-        volume: 1.0,
-        lambda: 4.0,
-        mu: 1.0,
-        slot: [0; 10],
-    }
+    super::tests_twist::element(4.0, 1.0)
 }
 
 /// The vertices of the element with deformation gradient `f`.

@@ -40,7 +40,7 @@
 //! `λ + 2μ` only at a volume change of about 100%: outside inversion the ratio stays
 //! under 1 and the substep count is unchanged.
 
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::corotational::Element;
 
@@ -49,18 +49,28 @@ use super::corotational::Element;
 /// under any rotation; `∞` for a stressed element with two stretches summing to
 /// zero.
 pub fn twist_ratio(e: &Element, s: &Matrix3<f64>) -> f64 {
-    let stretch = s.symmetric_eigenvalues();
-    let trace = stretch.sum() - 3.0;
-    let stress = stretch.map(|s| e.lambda * trace + 2.0 * e.mu * (s - 1.0));
-    let mut worst: f64 = 0.0;
-    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
-        let twist = (stress[i] + stress[j]) / (stretch[i] + stretch[j]);
-        // NaN (0/0: an unstressed pair summing to zero) does not raise the ratio.
-        if twist.abs() > worst {
-            worst = twist.abs();
-        }
-    }
+    // NaN (0/0: an unstressed pair summing to zero) does not raise the ratio.
+    let worst = twists(e, &s.symmetric_eigenvalues())
+        .iter()
+        .fold(
+            0.0,
+            |worst: f64, t| if t.abs() > worst { t.abs() } else { worst },
+        );
     worst / (e.lambda + 2.0 * e.mu)
+}
+
+/// The pairs `(i, j)` of principal directions whose twists [`twists`] gives, in
+/// its order.
+pub const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// The three twist eigenvalues `τ_ij = (s_i + s_j)/(σ_i + σ_j)` (Pa) of element `e`
+/// with principal stretches `σ` (in any order), `s_k = λ (Σσ − 3) + 2μ (σ_k − 1)`,
+/// for the pairs of [`PAIRS`]: 0 at rest, NaN for an unstressed pair summing to
+/// zero, `±∞` for a stressed one.
+pub fn twists(e: &Element, sigma: &Vector3<f64>) -> [f64; 3] {
+    let trace = sigma.sum() - 3.0;
+    let s = sigma.map(|x| e.lambda * trace + 2.0 * e.mu * (x - 1.0));
+    PAIRS.map(|(i, j)| (s[i] + s[j]) / (sigma[i] + sigma[j]))
 }
 
 /// An upper bound of [`twist_ratio`] from the entries of the stretch alone, without
@@ -86,6 +96,11 @@ pub fn twist_ratio_bound(e: &Element, s: &Matrix3<f64>) -> f64 {
 /// The symmetric stretch `S = sym(Rᵀ F)` of deformation gradient `f` with its polar
 /// rotation `r` (exactly `Rᵀ F` for the polar rotation).
 pub fn stretch(r: &Matrix3<f64>, f: &Matrix3<f64>) -> Matrix3<f64> {
-    let a = r.transpose() * f;
+    symmetric(&r.tr_mul(f))
+}
+
+/// The symmetric part `½ (A + Aᵀ)` of `a`.
+#[inline]
+pub fn symmetric(a: &Matrix3<f64>) -> Matrix3<f64> {
     0.5 * (a + a.transpose())
 }

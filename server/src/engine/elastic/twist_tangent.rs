@@ -5,7 +5,7 @@
 //! `K̂ = Σ_e R K_e Rᵀ` ([`corotational`](super::corotational)). In the principal
 //! frame of the stretch `S = Rᵀ F = Q diag(σ) Qᵀ` the Hessian of the corotated
 //! energy splits into scaling, flip and twist modes (Smith, de Goes and Kim 2019; see
-//! [`twist`](super::twist)). `K̂` holds the scaling and flip modes exactly, and
+//! [`twist`]). `K̂` holds the scaling and flip modes exactly, and
 //! nothing of the three twists `T_ij = R (q_i q_jᵀ − q_j q_iᵀ)/√2`: `Rᵀ T_ij` is
 //! skew, so the frozen strain `sym(Rᵀ δF)` does not see them. Their eigenvalues are
 //!
@@ -35,6 +35,7 @@
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 use super::corotational::Element;
+use super::twist;
 
 /// The twist over `λ + 2μ` from which an element's positive twists join the
 /// tangent, read from [`twist_ratio_bound`](super::twist::twist_ratio_bound) (from
@@ -82,15 +83,10 @@ impl TwistTangent {
     /// Adds the positive twist modes of element `e` (rotation `r`, deformation
     /// gradient `f`), while there is room (nothing is allocated).
     pub fn add(&mut self, e: &Element, r: &Matrix3<f64>, f: &Matrix3<f64>) {
-        let a = r.tr_mul(f);
-        let eigen = SymmetricEigen::new(0.5 * (a + a.transpose()));
+        let eigen = SymmetricEigen::new(twist::stretch(r, f));
         let (sigma, q) = (eigen.eigenvalues, eigen.eigenvectors);
-        let trace = sigma.sum() - 3.0;
-        let s = sigma.map(|x| e.lambda * trace + 2.0 * e.mu * (x - 1.0));
-        let [g1, g2, g3] = e.g;
-        let g = [-(g1 + g2 + g3), g1, g2, g3];
-        for (i, j) in [(0, 1), (0, 2), (1, 2)] {
-            let tau = (s[i] + s[j]) / (sigma[i] + sigma[j]);
+        let g = e.gradients();
+        for ((i, j), tau) in twist::PAIRS.into_iter().zip(twist::twists(e, &sigma)) {
             // Negative (squeezed) or not finite (an unstressed pair summing to zero):
             // nothing to add.
             if !(tau > 0.0 && tau.is_finite()) || self.modes.len() == self.modes.capacity() {

@@ -71,7 +71,8 @@ pub(super) fn step(
                 it.tangent_turn,
                 it.workers.as_ref(),
             );
-            (&c.tangent, Some(&c.twist))
+            c.update_twist(model);
+            (&c.tangent, Some(c.twist()))
         }
         None => {
             state.displacement_into(model, &mut it.u);
