@@ -638,11 +638,11 @@ impl Corotated {
     }
 
     /// Builds the positive twist modes ([`twist_tangent`]) of the elements the last
-    /// update flagged, at its positions `x₀` and rotations, for the implicit step
-    /// ([`twist`](Self::twist)). The flags come from the update's element pass (a
-    /// Gershgorin bound, cheap); the eigenvalues taken here are not, so only the
-    /// implicit step asks for them: the explicit step's substeps and the static
-    /// solve's iterations do without.
+    /// update flagged, at its positions `x₀` and rotations, for the implicit step and
+    /// the static solve ([`twist`](Self::twist)). The flags come from the update's
+    /// element pass (a Gershgorin bound, cheap); the eigenvalues taken here are not,
+    /// so only the solves that use the tangent ask for them: the explicit step's
+    /// substeps do without.
     pub fn update_twist(&mut self, model: &ElasticModel) {
         self.twist.clear();
         for (k, flagged) in self.twisted.iter().enumerate() {
