@@ -98,7 +98,7 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 
 use crate::engine::elastic::corotational::negated_force_on_with;
-use crate::engine::elastic::twist::{self, twist_ratio_bound};
+use crate::engine::elastic::twist;
 use crate::engine::elastic::twist_tangent::{self, TwistTangent};
 use crate::engine::elastic::{BlockMatrix, ElasticModel};
 
@@ -355,7 +355,7 @@ impl Settle {
         for &e in &self.elements {
             let (element, r) = (&model.elements[e as usize], &self.rotation[e as usize]);
             let f = element.deformation_gradient(x);
-            if twist_ratio_bound(element, &twist::stretch(r, &f)) > twist_tangent::FROM {
+            if twist_tangent::strongly_deformed(element, &twist::stretch(r, &f)) {
                 self.twist.add(element, r, &f);
             }
         }

@@ -624,8 +624,7 @@ impl Corotated {
             |e, k, q, a| {
                 // SAFETY: element `k`'s entries are its own.
                 unsafe {
-                    *twisted.at(k) =
-                        twist::twist_ratio_bound(e, &twist::symmetric(a)) > twist_tangent::FROM;
+                    *twisted.at(k) = twist_tangent::strongly_deformed(e, &twist::symmetric(a));
                 }
                 // SAFETY: element `k`'s blocks lie in the rows of its part's vertices
                 // (or it is a crossing element, handled alone), and `k` is its own.

@@ -1,5 +1,5 @@
-//! The twist stiffness of strongly deformed elements, for the implicit step's
-//! tangent.
+//! The twist stiffness of strongly deformed elements, for the tangents of the
+//! implicit step, the static solve and the contact settling's Newton passes.
 //!
 //! The implicit step freezes each element's rotation over the tick and solves with
 //! `K̂ = Σ_e R K_e Rᵀ` ([`corotational`](super::corotational)). In the principal
@@ -46,6 +46,13 @@ use super::twist;
 /// the twists above a tenth was not enough: the crossing above still changed its
 /// force by 2% a tick.
 pub const FROM: f64 = 0.1;
+
+/// Whether an element of stretch `s` ([`stretch`](twist::stretch)) may have a twist
+/// above [`FROM`]`·(λ + 2μ)`, by the cheap bound: whether its twists join a tangent.
+#[inline]
+pub fn strongly_deformed(e: &Element, s: &Matrix3<f64>) -> bool {
+    twist::twist_ratio_bound(e, s) > FROM
+}
 
 /// Elements whose twists a tick adds at most (three modes each, 120 bytes a mode:
 /// 369 kB).
