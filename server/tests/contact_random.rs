@@ -233,3 +233,30 @@ fn the_last_pass_settles_between_two_instruments() {
     ];
     run(0, &[a, b]).unwrap();
 }
+
+/// Found by the property test (liver-5k): a 5 cm tilted jab in one tick pressed the
+/// front face of the lower lip through the lip, and its back face went over the tip
+/// face on, none of its edges crossing the axis, so the axis left through it 1.6 mm
+/// above the tip. The tip press now presses such a back face ahead with the front one.
+#[test]
+fn a_jab_through_a_thin_lip_presses_its_back_face_ahead() {
+    let path: Vec<Waypoint> = vec![
+        (
+            [0.0, 0.011675774335088129, 0.0],
+            [-1.158516384112802, 0.07330055553068061],
+            1,
+        ),
+        (
+            [
+                0.0018079890037698172,
+                -0.008737583628252726,
+                -0.019632598979596575,
+            ],
+            [-1.4661820640274394, 0.0],
+            1,
+        ),
+        ([0.0, 0.0, 0.0], [0.0, 0.0], 1),
+        ([0.0, 0.0, 0.0], [0.0, 0.0], 1),
+    ];
+    run(1, &[path]).unwrap();
+}

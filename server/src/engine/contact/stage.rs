@@ -49,7 +49,7 @@ use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
 use super::scratch::{ContactStats, Scratch};
 use super::settle::{RINGS, Settle};
-use super::tip::{nearest_point, press_tip};
+use super::tip::{Reach, nearest_point, press_tip};
 use crate::engine::elastic::{BlockMatrix, ElasticModel, Formulation};
 use crate::engine::integrate::{Imposed, State};
 use crate::engine::mesh::Surface;
@@ -267,7 +267,7 @@ impl ContactStage {
                     };
                 }
                 self.sub_move(k, ins, surface, &to, length, &mut state.x);
-                self.press(ins, surface, &from, &to, &mut state.x);
+                self.press(ins, surface, Some(&from), &to, &mut state.x);
                 push_out(&mut self.s, surface, &to, ins.radius, length, &mut state.x);
                 if i < moves {
                     for &v in &surface.vertices {
@@ -328,7 +328,7 @@ impl ContactStage {
                         }
                         self.gather(k, surface, &state.x, &pose, ins.radius, length, false);
                     }
-                    self.press(ins, surface, &pose, &pose, &mut state.x);
+                    self.press(ins, surface, None, &pose, &mut state.x);
                     push_out(
                         &mut self.s,
                         surface,
@@ -517,24 +517,31 @@ impl ContactStage {
         }
     }
 
-    /// The tip press (§2.5) for an instrument that moved from `from` to `to`; the
-    /// report keeps the latest contact. Without a shaft the tip can only have gone
-    /// through the surface along its own path, so it reaches that far (and 2r) only.
+    /// The tip press (§2.5) for an instrument that moved from `from` to `to` in a
+    /// sub-move (`None`: a final pass, the instrument still); the report keeps the
+    /// latest contact. Without a shaft the tip can only have gone through the surface
+    /// along its own path, so it reaches that far (and 2r) only. In a sub-move, back
+    /// faces the tip went through on that path are pressed ahead too (`tip`).
     fn press(
         &mut self,
         ins: &mut Instrument,
         surface: &Surface,
-        from: &InstrumentPose,
+        from: Option<&InstrumentPose>,
         to: &InstrumentPose,
         x: &mut [Point3<f64>],
     ) {
         if !ins.tip_contact {
             return;
         }
-        let reach = if ins.shaft_contact {
-            ins.length
-        } else {
-            (to.tip - from.tip).norm() + 2.0 * ins.radius
+        let from_tip = from.unwrap_or(to).tip;
+        let travel = (to.tip - from_tip).norm() + 2.0 * ins.radius;
+        let reach = Reach {
+            front: if ins.shaft_contact {
+                ins.length
+            } else {
+                travel
+            },
+            back: from.map(|_| (from_tip - to.tip).dot(&to.axis)),
         };
         let tip = press_tip(&mut self.s, surface, to, ins.radius, reach, x);
         ins.report.tip = tip.or(ins.report.tip);

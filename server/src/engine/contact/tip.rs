@@ -25,8 +25,29 @@
 //! A triangle seen nearly edge-on (`n·Z` small) would be thrown far along `Z`; below
 //! [`GRAZING`] the triangle's own face normal is used if it faces the instrument
 //! better, and if neither does the triangle is left to the push-out of §2.6.
+//!
+//! A back face. The ray can meet a triangle whose outward normal faces away from the
+//! handle (`n·Z ≤ −GRAZING`): the tip is on its outward side and the shaft behind it on
+//! its tissue side. That is a thin part of the liver the tip pressed through when
+//! three things hold: the face went over the tip by the tip's own advance in this
+//! sub-move (the point of it the axis now meets, at `t` above the tip, was at `β₀ ≤ 0`
+//! at the sub-move's start, `rel_start` in the instrument's frame, and rose by
+//! `t − β₀` no more than the tip advanced along `−Z`); and a face toward the handle
+//! lies ahead of the tip within `r / GRAZING` (the front face it presses, on the tip
+//! plane). The back face then came over the tip face on, through the front one, none
+//! of its edges crossing the axis for §2.3–2.4 to stop: a 5 cm tilted jab into
+//! liver-5k's lower lip in one tick left the axis through a back face 1.6 mm above the
+//! tip, the surface turned inside out there. Such a face is pressed ahead with the
+//! front one, onto the plane of normal `m = −n` (oriented toward the handle, as a front
+//! face's) through `P − r·m`: the part of the liver between them flattened ahead of the
+//! tip, as the tip pushes it. Any other back face is left, as before: a tip that has
+//! gone into the tissue (no front face ahead) leaves through it, and one the tissue's
+//! own motion brings over a still tip is a second lobe the shaft passes through (see
+//! the module notes of `contact`). Pressed ahead in those cases, a deep pivot through
+//! the liver hooked it and held it 0.22 m off its rest a second after withdrawal
+//! (`tests/contact_release.rs`).
 
-use nalgebra::{Point3, Unit};
+use nalgebra::{Point3, Unit, Vector3};
 
 use super::closest::{closest_point_triangle, interpolated_normal, ray_triangle};
 use super::instrument::{NearestSurface, TipContact};
@@ -40,6 +61,16 @@ const GRAZING: f64 = 0.2;
 /// Triangles met one after another along the axis (folds) handled per tick.
 const MAX_LAYERS: usize = 4;
 
+/// Which triangles the press takes.
+pub(super) struct Reach {
+    /// How far up the axis from the tip it takes faces toward the handle, m.
+    pub front: f64,
+    /// The tip's advance along `−Z` over the sub-move that started at `rel_start`, m,
+    /// for back faces it pressed through (see the module notes); `None` when the
+    /// press follows no motion.
+    pub back: Option<f64>,
+}
+
 /// Presses the triangles the axis meets within `reach` of the tip onto the tip plane.
 /// Returns the first contact, if any.
 pub(super) fn press_tip(
@@ -47,7 +78,7 @@ pub(super) fn press_tip(
     surface: &Surface,
     pose: &InstrumentPose,
     radius: f64,
-    reach: f64,
+    reach: Reach,
     x: &mut [Point3<f64>],
 ) -> Option<TipContact> {
     let z = pose.axis.into_inner();
@@ -57,7 +88,7 @@ pub(super) fn press_tip(
         for &t in &s.triangles {
             let tri = surface.triangles[t as usize].map(|v| x[v as usize]);
             if let Some(hit) = ray_triangle(&pose.tip, &z, &tri)
-                && hit.t <= reach
+                && hit.t <= reach.front
                 && best.is_none_or(|b| hit.t < b.0)
             {
                 best = Some((hit.t, t, hit.barycentric));
@@ -71,12 +102,31 @@ pub(super) fn press_tip(
             let p = tri.map(|v| x[v as usize]);
             Unit::try_new((p[1] - p[0]).cross(&(p[2] - p[0])), 0.0)
         };
-        let n = match interpolated_normal(&bary, &normals) {
+        let interpolated = interpolated_normal(&bary, &normals);
+        let n = match interpolated {
             Some(n) if n.dot(&z) >= GRAZING => Some(n),
             other => face
                 .filter(|f| f.dot(&z) >= GRAZING)
                 .or(other.filter(|n| n.dot(&z) > 0.0)),
         };
+        // A back face the tip went through: its plane oriented toward the handle.
+        let n = n.or_else(|| {
+            let advance = reach.back?;
+            let back = |n: &Unit<Vector3<f64>>| -n.dot(&z) >= GRAZING;
+            let n = interpolated.filter(back).or(face.filter(back))?;
+            let start: Point3<f64> = tri
+                .iter()
+                .zip(bary)
+                .map(|(&v, w)| s.rel_start[v as usize].coords * w)
+                .sum::<Vector3<f64>>()
+                .into();
+            // `t − β₀`, and `β₀ ≤ 0` as `t ≤ t − β₀`.
+            let rise = depth - (start - pose.tip).dot(&z);
+            let went_over = depth <= rise
+                && rise <= advance
+                && front_face_ahead(s, surface, pose, radius / GRAZING, x);
+            went_over.then_some(-n)
+        });
         let Some(n) = n else {
             first = first.or(Some(TipContact {
                 p_prox,
@@ -107,6 +157,25 @@ pub(super) fn press_tip(
         }
     }
     first
+}
+
+/// Whether the ray from the tip away from the handle meets, within `reach`, a face
+/// toward the handle: the front face the tip presses, which a back face that went
+/// over the tip has crossed (see the module notes). A tip inside the tissue, which
+/// has no such face ahead of it, leaves through the back face instead.
+fn front_face_ahead(
+    s: &Scratch,
+    surface: &Surface,
+    pose: &InstrumentPose,
+    reach: f64,
+    x: &[Point3<f64>],
+) -> bool {
+    let ahead = -pose.axis.into_inner();
+    s.triangles.iter().any(|&t| {
+        let p = surface.triangles[t as usize].map(|v| x[v as usize]);
+        let faces_handle = (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&ahead) < 0.0;
+        faces_handle && ray_triangle(&pose.tip, &ahead, &p).is_some_and(|hit| hit.t <= reach)
+    })
 }
 
 /// The surface point nearest the tip among the candidate triangles, with its normal.
