@@ -11,7 +11,9 @@
 //!   then, unless the scene turns it off (`contact.settle`), the free tissue around the
 //!   vertices the steps jumped is settled with them (`settle`: without it the
 //!   first-contact tick's reaction is that of one vertex displaced against fixed
-//!   neighbours, up to 49× the steady force), then one more
+//!   neighbours, up to 49× the steady force), and what the settled tissue then pulls
+//!   away from its instrument is let go and the tissue relaxed around it
+//!   (`release_pulled`), then one more
 //!   push-out pass for every instrument so that a vertex pushed by one, or moved by
 //!   the settling, is not left inside another.
 //!
@@ -76,6 +78,8 @@ pub struct ContactStage {
     slid: Vec<Vector3<f64>>,
     /// The vertices the stage jumped this tick, for the settling.
     jumped: Vec<u32>,
+    /// The held vertices let go after the settling, for its relaxation.
+    released: Vec<u32>,
     /// The settling's buffers, unless the scene turns it off (`contact.settle`).
     settle: Option<Settle>,
     /// Whether the tip's reactions are scaled to its own footprint (`footprint`).
@@ -134,6 +138,7 @@ impl ContactStage {
             slide: vec![Vector3::zeros(); n],
             slid: vec![Vector3::zeros(); n],
             jumped: Vec::new(),
+            released: Vec::new(),
             settle: None,
             footprint: false,
             s: Scratch::new(surface, rest, fixed),
@@ -147,6 +152,7 @@ impl ContactStage {
         let n = self.holders.len();
         self.settle = on.then(|| Settle::new(n, elements));
         self.jumped = Vec::with_capacity(if on { n } else { 0 });
+        self.released = Vec::with_capacity(if on { n } else { 0 });
         self
     }
 
@@ -292,6 +298,14 @@ impl ContactStage {
             self.collect_shaft_edges(ins, surface, state);
         }
         let settled = self.settle_jumps(instruments, surface, model, tangent, state, imposed);
+        if let Some(Settled {
+            rings,
+            past_radius: true,
+        }) = settled
+        {
+            self.release_pulled(instruments, model, tangent, state, imposed, rings);
+        }
+        let settled = settled.is_some();
         // One more pass for every instrument, tip and push-out, so that what one
         // instrument moved is not left inside another or across its axis (a large
         // triangle swung back over a pressed tip has no vertex inside the instrument;
@@ -380,8 +394,8 @@ impl ContactStage {
     /// model's own force follow the linear settling (see `settle`); a sweep's scaled
     /// jumps are settled linearly only (with the passes, the whole-liver sweep of
     /// `tests/contact_hard_cases.rs` left a triangle 4.9 mm inside the shaft). Returns
-    /// whether it did, and then leaves in `rel_start` the surface as the settling
-    /// found it.
+    /// the rings it settled, if it did, and then leaves in `rel_start` the surface as
+    /// the settling found it.
     fn settle_jumps(
         &mut self,
         instruments: &[Instrument],
@@ -390,15 +404,13 @@ impl ContactStage {
         tangent: &BlockMatrix,
         state: &mut State,
         imposed: &Imposed,
-    ) -> bool {
+    ) -> Option<Settled> {
         let radius = instruments
             .iter()
             .filter(|i| i.current.is_some())
             .map(|i| i.radius)
             .fold(f64::INFINITY, f64::min);
-        let Some(settle) = &mut self.settle else {
-            return false;
-        };
+        let settle = self.settle.as_mut()?;
         self.jumped.clear();
         let (mut largest, mut sideways): (f64, f64) = (0.0, 0.0);
         for &v in &surface.vertices {
@@ -423,7 +435,7 @@ impl ContactStage {
             for &v in &self.jumped {
                 settle.jump[v as usize] = Vector3::zeros();
             }
-            return false;
+            return None;
         }
         let scale = (SETTLE_REACH * radius / sideways).min(1.0);
         if scale < 1.0 {
@@ -449,7 +461,80 @@ impl ContactStage {
             nonlinear,
             &mut state.x,
         );
-        true
+        Some(Settled {
+            rings,
+            past_radius: largest * scale > radius,
+        })
+    }
+
+    /// After a settling whose largest jump passed the radius: lets go of the held
+    /// vertices the contact steps moved this tick and the settled tissue pulls away
+    /// from their instrument (Coulomb's law of `hold::stays_held` on the model's force
+    /// at each, with the same adhesion), relaxes the tissue around them
+    /// ([`Settle::relax`], over the settling's `rings`), and again, up to
+    /// [`RELEASE_ROUNDS`] times, until none is let go: the held set the contact steps
+    /// chose by geometry made unilateral within the tick (see `settle`, "A held set
+    /// that pulls").
+    fn release_pulled(
+        &mut self,
+        instruments: &mut [Instrument],
+        model: &ElasticModel,
+        tangent: &BlockMatrix,
+        state: &mut State,
+        imposed: &mut Imposed,
+        rings: usize,
+    ) {
+        let Some(settle) = &mut self.settle else {
+            return;
+        };
+        for _ in 0..RELEASE_ROUNDS {
+            self.released.clear();
+            for (k, ins) in instruments.iter_mut().enumerate() {
+                let Some(pose) = ins.current else { continue };
+                let (length, radius, tip_contact) =
+                    (ins.active_length(), ins.radius, ins.tip_contact);
+                let x = &state.x;
+                let reaction = |v: u32| -model.negated_elastic_force_on(v, x);
+                let mean = ins.held.iter().map(|&v| reaction(v).norm()).sum::<f64>()
+                    / ins.held.len().max(1) as f64;
+                let adhesion = ADHESION * mean;
+                let bit = 1u8 << k;
+                let (holders, slide, fixed) = (&mut self.holders, &mut self.slide, &self.s.fixed);
+                let (released, end) = (&mut self.released, &self.end);
+                ins.held.retain(|&v| {
+                    // Only what the contact steps moved this tick: the rest was
+                    // judged by the same law after the elastic step.
+                    if x[v as usize] == end[v as usize] {
+                        return true;
+                    }
+                    let Some((m, _)) =
+                        contact_normal(&x[v as usize], &pose, length, radius, tip_contact)
+                    else {
+                        return true;
+                    };
+                    if -reaction(v).dot(&m) >= -adhesion {
+                        return true;
+                    }
+                    let_go(v, bit, holders, slide, fixed, imposed, Some(&mut *settle));
+                    if holders[v as usize] == 0 && !fixed[v as usize] {
+                        released.push(v);
+                    }
+                    false
+                });
+            }
+            if self.released.is_empty() {
+                break;
+            }
+
+            settle.relax(
+                tangent,
+                imposed.mask(),
+                &self.released,
+                rings,
+                model,
+                &mut state.x,
+            );
+        }
     }
 
     /// A sub-move of instrument `k` ending at `to`, the surface having moved from
@@ -807,6 +892,23 @@ const SETTLE_REACH: f64 = 1.0;
 /// the mesh's). Only ticks whose jumps along the axis pass a radius pay it: a jab,
 /// not a press.
 const SETTLE_RINGS: usize = 12;
+
+/// What [`ContactStage::settle_jumps`] settled.
+#[derive(Clone, Copy, Debug)]
+struct Settled {
+    /// The rings of free nodes around the jumps.
+    rings: usize,
+    /// Whether the largest settled jump passed the instrument's radius.
+    past_radius: bool,
+}
+
+/// Rounds of letting go of what the settled tissue pulls away and relaxing around it
+/// ([`ContactStage::release_pulled`]). A relaxation can leave another held vertex
+/// pulled: a tip posed 1 cm into tissue of 100 kPa, ν = 0.49, let three go, then
+/// one more, then none. Six rounds changed none of the first-pose figures of
+/// `tests/contact_first_touch.rs`; each round costs a CG solve over the region, on
+/// settled ticks only.
+const RELEASE_ROUNDS: usize = 3;
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
 /// on a straight line in the instrument's frame while the instrument turns about its
