@@ -17,6 +17,20 @@ use crate::engine::mesh::Surface;
 /// instrument pulls far harder.
 pub(super) const ADHESION: f64 = 0.1;
 
+/// The adhesion of an instrument, N: [`ADHESION`] times the mean of `reactions`, the
+/// norms of the tissue's reactions on its held vertices (0 when it holds none).
+pub(super) fn adhesion(reactions: impl Iterator<Item = f64>) -> f64 {
+    let (sum, count) = reactions.fold((0.0, 0usize), |(s, n), r| (s + r, n + 1));
+    ADHESION * (sum / count.max(1) as f64)
+}
+
+/// The normal part of Coulomb's law with adhesion: whether a held vertex the tissue
+/// pushes onto the instrument with `normal = N = −reaction·m` (negative: pulls it
+/// away) is let go. Without adhesion a vertex the tissue no longer presses goes too.
+pub(super) fn pulled_away(normal: f64, adhesion: f64) -> bool {
+    normal < -adhesion || (normal <= 0.0 && adhesion == 0.0)
+}
+
 /// The longest slide of a held vertex in one tick, as a fraction of the radius.
 pub(super) const MAX_SLIDE: f64 = 0.5;
 
@@ -121,7 +135,7 @@ pub(super) fn stays_held(
         }
     };
     let normal = -reaction.dot(&m);
-    if normal < -adhesion || (normal <= 0.0 && adhesion == 0.0) {
+    if pulled_away(normal, adhesion) {
         return Hold::Release;
     }
     let normal = normal.max(0.0);

@@ -192,6 +192,14 @@ pub(super) struct Settle {
     twist: TwistTangent,
 }
 
+/// Whether the region's force at the current positions is already in `Settle::q`
+/// (and, corotational, its elements' rotations in `Settle::rotation`).
+#[derive(Clone, Copy, PartialEq)]
+enum Evaluated {
+    Here,
+    Not,
+}
+
 /// The stiffness a CG solve of the settling applies.
 #[derive(Clone, Copy)]
 enum Tangent<'a> {
@@ -290,7 +298,8 @@ impl Settle {
         let iterations = MAX_ITERATIONS * rings.div_ceil(RINGS);
         let mut largest = self.solve(Tangent::Assembled(k), iterations, x);
         if let Some((model, _)) = nonlinear {
-            largest = largest.max(self.newton(model, k, NEWTON_PASSES, MAX_ITERATIONS, 0, x));
+            let passes = (NEWTON_PASSES, MAX_ITERATIONS, 0);
+            largest = largest.max(self.newton(model, k, passes, Evaluated::Not, x));
             for &v in jumped {
                 x[v as usize] = self.swap[v as usize];
             }
@@ -311,7 +320,7 @@ impl Settle {
     /// what it is. That is the Newton iteration `K Δu_F = f⁰_F − f_F(x)` of the
     /// settling with `f⁰_v = 0` on the released vertices: one exact solve for the
     /// linear model (`k` is its `K`), [`NEWTON_PASSES`] passes on the fresh tangent
-    /// for the corotational one. Returns the largest move of a free node, m.
+    /// for the corotational one.
     pub fn relax(
         &mut self,
         k: &BlockMatrix,
@@ -320,7 +329,7 @@ impl Settle {
         rings: usize,
         model: &ElasticModel,
         x: &mut [Point3<f64>],
-    ) -> f64 {
+    ) {
         let rings = rings.max(RINGS);
         self.gather_region(k, imposed, released, rings);
         if model.formulation == Formulation::Corotational {
@@ -339,7 +348,9 @@ impl Settle {
             Formulation::Corotational => NEWTON_PASSES,
         };
         let iterations = MAX_ITERATIONS * rings.div_ceil(RINGS);
-        self.newton(model, k, passes, iterations, BACKTRACK, x)
+        // `q` (and, corotational, `rotation`) still hold the force at `x`.
+        let from = Evaluated::Here;
+        self.newton(model, k, (passes, iterations, BACKTRACK), from, x);
     }
 
     /// The region: the free nodes (not `imposed`) among `seeds` and within `rings`
@@ -408,23 +419,28 @@ impl Settle {
     /// `force`, each a CG solve of at most `iterations` iterations: for the
     /// corotational model on its fresh tangent with the twists (see the module
     /// documentation), for the linear one on `k`. A pass that raises the residual is
-    /// undone and ends them. Returns the largest move of a free node, m.
+    /// halved, up to `backtrack` times, then undone, and ends them. `from` says
+    /// whether the region's force at `x` is already in `q`. Returns the largest move
+    /// of a free node, m.
     fn newton(
         &mut self,
         model: &ElasticModel,
         k: &BlockMatrix,
-        passes: usize,
-        iterations: usize,
-        backtrack: usize,
+        (passes, iterations, backtrack): (usize, usize, usize),
+        from: Evaluated,
         x: &mut [Point3<f64>],
     ) -> f64 {
         let mut largest: f64 = 0.0;
         let mut last = f64::INFINITY;
         let mut pass = 0;
         let mut halvings = 0;
+        let mut evaluated = from == Evaluated::Here;
         loop {
             // The force here (and, corotational, the rotations for the tangent here).
-            self.region_force(model, x);
+            if !evaluated {
+                self.region_force(model, x);
+            }
+            evaluated = false;
             let mut residual = 0.0;
             for &i in &self.region {
                 let i = i as usize;

@@ -44,7 +44,8 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use super::broadphase::{Box3, BroadPhase};
 use super::edges::stop_colliding_edges;
 use super::hold::{
-    ADHESION, Hold, MAX_SLIDE, MIN_SLIDE, contact_normal, shaft_press, stays_held, tip_press,
+    Hold, MAX_SLIDE, MIN_SLIDE, adhesion, contact_normal, pulled_away, shaft_press, stays_held,
+    tip_press,
 };
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
@@ -80,6 +81,9 @@ pub struct ContactStage {
     jumped: Vec<u32>,
     /// The held vertices let go after the settling, for its relaxation.
     released: Vec<u32>,
+    /// The tissue's reaction on each of an instrument's held vertices, in the order
+    /// of its `held`, while the settled tissue's pull is judged (`release_pulled`).
+    reactions: Vec<Vector3<f64>>,
     /// The settling's buffers, unless the scene turns it off (`contact.settle`).
     settle: Option<Settle>,
     /// Whether the tip's reactions are scaled to its own footprint (`footprint`).
@@ -139,6 +143,7 @@ impl ContactStage {
             slid: vec![Vector3::zeros(); n],
             jumped: Vec::new(),
             released: Vec::new(),
+            reactions: Vec::new(),
             settle: None,
             footprint: false,
             s: Scratch::new(surface, rest, fixed),
@@ -153,6 +158,7 @@ impl ContactStage {
         self.settle = on.then(|| Settle::new(n, elements));
         self.jumped = Vec::with_capacity(if on { n } else { 0 });
         self.released = Vec::with_capacity(if on { n } else { 0 });
+        self.reactions = Vec::with_capacity(if on { n } else { 0 });
         self
     }
 
@@ -469,12 +475,12 @@ impl ContactStage {
 
     /// After a settling whose largest jump passed the radius: lets go of the held
     /// vertices the contact steps moved this tick and the settled tissue pulls away
-    /// from their instrument (Coulomb's law of `hold::stays_held` on the model's force
-    /// at each, with the same adhesion), relaxes the tissue around them
-    /// ([`Settle::relax`], over the settling's `rings`), and again, up to
-    /// [`RELEASE_ROUNDS`] times, until none is let go: the held set the contact steps
-    /// chose by geometry made unilateral within the tick (see `settle`, "A held set
-    /// that pulls").
+    /// from their instrument (the normal part of Coulomb's law, `hold::pulled_away`,
+    /// on the model's force at each, with the instrument's adhesion), relaxes the
+    /// tissue around them ([`Settle::relax`], over the settling's `rings`), and again,
+    /// up to [`RELEASE_ROUNDS`] times, until none is let go: the held set the contact
+    /// steps chose by geometry made unilateral within the tick (see `settle`, "A held
+    /// set that pulls").
     fn release_pulled(
         &mut self,
         instruments: &mut [Instrument],
@@ -494,14 +500,20 @@ impl ContactStage {
                 let (length, radius, tip_contact) =
                     (ins.active_length(), ins.radius, ins.tip_contact);
                 let x = &state.x;
-                let reaction = |v: u32| -model.negated_elastic_force_on(v, x);
-                let mean = ins.held.iter().map(|&v| reaction(v).norm()).sum::<f64>()
-                    / ins.held.len().max(1) as f64;
-                let adhesion = ADHESION * mean;
+                // The tissue's reaction on each held vertex, in the order of `held`.
+                self.reactions.clear();
+                self.reactions.extend(
+                    ins.held
+                        .iter()
+                        .map(|&v| -model.negated_elastic_force_on(v, x)),
+                );
+                let adhesion = adhesion(self.reactions.iter().map(|f| f.norm()));
                 let bit = 1u8 << k;
                 let (holders, slide, fixed) = (&mut self.holders, &mut self.slide, &self.s.fixed);
                 let (released, end) = (&mut self.released, &self.end);
+                let mut reactions = self.reactions.iter();
                 ins.held.retain(|&v| {
+                    let reaction = reactions.next().expect("one reaction per held vertex");
                     // Only what the contact steps moved this tick: the rest was
                     // judged by the same law after the elastic step.
                     if x[v as usize] == end[v as usize] {
@@ -512,11 +524,10 @@ impl ContactStage {
                     else {
                         return true;
                     };
-                    if -reaction(v).dot(&m) >= -adhesion {
+                    if !pulled_away(-reaction.dot(&m), adhesion) {
                         return true;
                     }
-                    let_go(v, bit, holders, slide, fixed, imposed, Some(&mut *settle));
-                    if holders[v as usize] == 0 && !fixed[v as usize] {
+                    if let_go(v, bit, holders, slide, fixed, imposed, Some(&mut *settle)) {
                         released.push(v);
                     }
                     false
@@ -525,7 +536,6 @@ impl ContactStage {
             if self.released.is_empty() {
                 break;
             }
-
             settle.relax(
                 tangent,
                 imposed.mask(),
@@ -648,13 +658,8 @@ impl ContactStage {
         let length = ins.active_length();
         // Adhesion: a pull-away below a tenth of the mean force on the instrument's
         // held vertices does not release (see `stays_held`).
-        let mean = ins
-            .held
-            .iter()
-            .map(|&v| state.reaction[v as usize].norm())
-            .sum::<f64>()
-            / ins.held.len().max(1) as f64;
-        let ins_params = (ins.tip_contact, ins.friction, ADHESION * mean);
+        let adhesion = adhesion(ins.held.iter().map(|&v| state.reaction[v as usize].norm()));
+        let ins_params = (ins.tip_contact, ins.friction, adhesion);
         let radius = ins.radius;
         let holders = &mut self.holders;
         let slide = &mut self.slide;
@@ -811,7 +816,8 @@ impl ContactStage {
 
 /// Instrument `bit` lets go of vertex `v`: its slide is dropped, and it is freed
 /// unless another instrument holds it or it is a support; `settle`, when given,
-/// remembers that it was let go ([`Settle::taken_back`]).
+/// remembers that it was let go ([`Settle::taken_back`]). Returns whether it was
+/// freed.
 fn let_go(
     v: u32,
     bit: u8,
@@ -820,16 +826,18 @@ fn let_go(
     fixed: &[bool],
     imposed: &mut Imposed,
     settle: Option<&mut Settle>,
-) {
+) -> bool {
     let vi = v as usize;
     if let Some(settle) = settle {
         settle.let_go(v);
     }
     slide[vi] = Vector3::zeros();
     holders[vi] &= !bit;
-    if holders[vi] == 0 && !fixed[vi] {
+    let freed = holders[vi] == 0 && !fixed[vi];
+    if freed {
         imposed.release(v);
     }
+    freed
 }
 
 /// How far the instrument's surface may draw back from a held vertex in one tick,
