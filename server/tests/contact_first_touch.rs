@@ -199,8 +199,7 @@ fn without_settling_the_first_contact_tick_spikes() {
 
 /// An instrument whose first pose is already 1–3 cm into the free front (the tip's
 /// foremost point past the front vertex, axis +z), held there: every tick of the
-/// hold reports within 2× of the force it settles to (the linear model at 3 cm: its
-/// first tick; its third retakes a vertex with 3.69 N against 0.93 N steady). The
+/// hold reports within 2× of the force it settles to. The
 /// first tick's jumps pass the radius four times over, far out of the tangent's
 /// reach; the corotational model's own forces are brought back into balance around
 /// them by the settling's Newton passes (`engine/contact/settle.rs`). Without them
@@ -217,6 +216,12 @@ fn without_settling_the_first_contact_tick_spikes() {
 /// on its first tick, and every case at 100 kPa spiked on its second tick (up to
 /// 162 N against 25.8 N at ν = 0.49, 3 cm; the test after this one).
 ///
+/// Tissue that springs back onto the still tip is settled as a first touch
+/// (`ContactStage::springs_back`). The linear model at 3 cm lets its hold go on its
+/// second tick, the tissue released beside the shaft having taken the tip's triangle
+/// out of its reach, and takes the tissue back on its third: 3.69 N against 0.93 N
+/// steady before, 0.59 N now. The second tick reports nothing (see `settle.rs`).
+///
 /// Deeper poses do not indent: the lobe's back face is 20–33 mm behind the front
 /// vertex within 12 mm of the axis, and on the axis between 3 and 4 cm. At 4 and
 /// 6 cm the tip is past it, the axis meets that face first (`n·Z = −0.75` at the
@@ -225,20 +230,17 @@ fn without_settling_the_first_contact_tick_spikes() {
 /// ticks, 6.44 and 9.86 N against 1.07 and 2.57 N steady, are not a press's.
 #[test]
 fn a_first_pose_inside_reports_within_twice_its_steady_force() {
-    use Bound::{Every, First};
     // How far into the free front the first poses are, m: 3 cm is the deepest that
     // indents the lobe rather than skewering it.
-    let every = [(0.01, Every), (0.02, Every), (0.03, Every)];
-    let linear = [(0.01, Every), (0.02, Every), (0.03, First)];
-    for (formulation, integrator, depths) in [
-        (Formulation::Corotational, "implicit", &every),
-        (Formulation::Corotational, "explicit", &every),
-        (Formulation::Linear, "implicit", &linear),
+    for (formulation, integrator) in [
+        (Formulation::Corotational, "implicit"),
+        (Formulation::Corotational, "explicit"),
+        (Formulation::Linear, "implicit"),
     ] {
-        for &(depth, bound) in depths {
+        for depth in [0.01, 0.02, 0.03] {
             let scene = Scene::default_scene();
             let material = (scene.material.young_modulus, scene.material.poisson_ratio);
-            first_pose_within_twice(formulation, integrator, material, depth, bound);
+            first_pose_within_twice(formulation, integrator, material, depth, Bound::Every);
         }
     }
 }
@@ -250,12 +252,15 @@ fn a_first_pose_inside_reports_within_twice_its_steady_force() {
 /// at 100 kPa, ν = 0.49, 3 cm (95.1 N against 25.7 N), 4.0× and 2.8× at 3 kPa,
 /// ν = 0.49, 2 and 3 cm, and 9.6× at ν = 0.499, 1 cm.
 ///
-/// Every tick within 2×: 100 kPa at ν = 0.3, 1–3 cm, and at ν = 0.45 and 0.49,
-/// 1 cm (and 2 cm at ν = 0.45); 3 kPa at ν = 0.49, 1 and 2 cm. Before the held set
-/// was made unilateral within the tick (see the test above), each 100 kPa case
-/// spiked on its second tick: 1.3× (ν = 0.3, 1 cm) to 6.3× (ν = 0.49, 3 cm).
-/// The first tick within 2×: 100 kPa at ν = 0.45 and 0.49, 3 cm (later ticks retake
-/// a vertex let go, 72.8 N against 25.3 N and 72.9 N against 26.2 N).
+/// Every tick within 2×: 100 kPa at ν = 0.3 and 0.45, 1–3 cm, and at ν = 0.49,
+/// 1 cm; 3 kPa at ν = 0.49, 1 and 2 cm. Before the held set was made unilateral
+/// within the tick (see the test above), each 100 kPa case spiked on its second
+/// tick: 1.3× (ν = 0.3, 1 cm) to 6.3× (ν = 0.49, 3 cm). At ν = 0.45, 3 cm, the
+/// tissue springing back onto the still tip after a tick with no hold reported
+/// 72.8 N against 25.3 N steady before it was settled (see the test above), 28.0 N
+/// now.
+/// The first tick within 2×: 100 kPa at ν = 0.49, 3 cm (the fifth tick retakes a
+/// vertex let go, 72.9 N against 26.2 N).
 ///
 /// Not in the list: 100 kPa, ν = 0.49, 2 cm, first tick 53.0 N against 22.0 N
 /// steady (2.4×; the held set does not change, the tissue the settling leaves goes
@@ -272,7 +277,7 @@ fn a_first_pose_inside_stiff_tissue_reports_within_twice_its_steady_force() {
         (
             1e5,
             0.45,
-            &[(0.01, Every), (0.02, Every), (0.03, First)][..],
+            &[(0.01, Every), (0.02, Every), (0.03, Every)][..],
         ),
         (1e5, 0.49, &[(0.01, Every), (0.03, First)][..]),
         (3e3, 0.49, &[(0.01, Every), (0.02, Every)][..]),
