@@ -199,10 +199,10 @@ fn without_settling_the_first_contact_tick_spikes() {
 
 /// An instrument whose first pose is already 1–3 cm into the free front (the tip's
 /// foremost point past the front vertex, axis +z), held there: every tick of the
-/// hold reports within 2× of the force it settles to. The
-/// first tick's jumps pass the radius four times over, far out of the tangent's
-/// reach; the corotational model's own forces are brought back into balance around
-/// them by the settling's Newton passes (`engine/contact/settle.rs`). Without them
+/// hold reports within 2× of the force it settles to. The first tick's jumps pass
+/// the radius four times over, far out of the tangent's reach; the corotational
+/// model's own forces are brought back into balance around them by the settling's
+/// Newton passes (`engine/contact/settle.rs`). Without them
 /// the default scene's first tick gave 1.55 N against 0.55 N steady, and at
 /// E = 100 kPa, ν = 0.49, 264 N against 16.6 N (15.9× with Newton passes on the
 /// tick's own tangent); the linear model, settled the same way, 0.52 N against
@@ -216,11 +216,11 @@ fn without_settling_the_first_contact_tick_spikes() {
 /// on its first tick, and every case at 100 kPa spiked on its second tick (up to
 /// 162 N against 25.8 N at ν = 0.49, 3 cm; the test after this one).
 ///
-/// Tissue that springs back onto the still tip is settled as a first touch
-/// (`ContactStage::springs_back`). The linear model at 3 cm lets its hold go on its
-/// second tick, the tissue released beside the shaft having taken the tip's triangle
-/// out of its reach, and takes the tissue back on its third: 3.69 N against 0.93 N
-/// steady before, 0.59 N now. The second tick reports nothing (see `settle.rs`).
+/// The linear model at 3 cm let its hold go on its second tick, the tissue released
+/// beside the shaft having turned the tip's triangle out of the tip's reach (then
+/// 1.25 r), reported nothing, and took the tissue back on its third: 3.69 N against
+/// 0.93 N steady. With the reach at 1.5 r (`hold.rs`, `TIP_REACH`) the hold is kept:
+/// 1.039–1.059 N on every tick, 1.051 N steady.
 ///
 /// Deeper poses do not indent: the lobe's back face is 20–33 mm behind the front
 /// vertex within 12 mm of the axis, and on the axis between 3 and 4 cm. At 4 and
@@ -256,11 +256,11 @@ fn a_first_pose_inside_reports_within_twice_its_steady_force() {
 /// 1 cm; 3 kPa at ν = 0.49, 1 and 2 cm. Before the held set was made unilateral
 /// within the tick (see the test above), each 100 kPa case spiked on its second
 /// tick: 1.3× (ν = 0.3, 1 cm) to 6.3× (ν = 0.49, 3 cm). At ν = 0.45, 3 cm, the
-/// tissue springing back onto the still tip after a tick with no hold reported
-/// 72.8 N against 25.3 N steady before it was settled (see the test above), 28.0 N
-/// now.
+/// hold was lost on the fifth tick as in the linear case (see the test above) and
+/// the tissue taken back on the sixth with 72.8 N against 25.3 N steady; with the
+/// tip's reach at 1.5 r, at most 25.1 N against 20.2 N.
 /// The first tick within 2×: 100 kPa at ν = 0.49, 3 cm (the fifth tick retakes a
-/// vertex let go, 72.9 N against 26.2 N).
+/// vertex let go, 72.9 N against 31.7 N).
 ///
 /// Not in the list: 100 kPa, ν = 0.49, 2 cm, first tick 53.0 N against 22.0 N
 /// steady (2.4×; the held set does not change, the tissue the settling leaves goes

@@ -63,6 +63,12 @@ impl InstrumentPose {
     pub fn point_at(&self, s: f64) -> Point3<f64> {
         self.tip + self.axis.into_inner() * s
     }
+
+    /// The part of `d` across the axis, `d − Z (Z·d)`: a move with it removed is
+    /// along the axis.
+    pub fn across(&self, d: &Vector3<f64>) -> Vector3<f64> {
+        d - self.axis.into_inner() * self.axis.dot(d)
+    }
 }
 
 /// The rigid motion `R` of eq. 1 that takes the instrument from `old` to `new`: the

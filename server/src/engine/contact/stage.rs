@@ -391,9 +391,7 @@ impl ContactStage {
     }
 
     /// Settles the free tissue around the held vertices the contact steps jumped this
-    /// tick (see `settle`; of those let go this tick or the one before, only tissue
-    /// springing back onto a still tip, [`springs_back`]), when the largest jump
-    /// exceeds [`SETTLE_JUMP`] of the
+    /// tick (see `settle`), when the largest jump exceeds [`SETTLE_JUMP`] of the
     /// smallest radius, unless the scene turns it off, each jump scaled down so that
     /// the largest sideways part (across its instrument's axis) is at most
     /// [`SETTLE_REACH`] radii; the region grows by a ring for every radius the largest
@@ -424,20 +422,15 @@ impl ContactStage {
         for &v in &surface.vertices {
             let vi = v as usize;
             let holders = self.holders[vi];
-            if holders != 0 && !self.s.fixed[vi] {
+            if holders != 0 && !self.s.fixed[vi] && !settle.taken_back(v) {
                 let d = state.x[vi] - self.end[vi];
-                // The first instrument holding it.
-                let holder = &instruments[holders.trailing_zeros() as usize];
-                if settle.taken_back(v) && !springs_back(holder, &state.x[vi], &d) {
-                    continue;
-                }
                 if d != Vector3::zeros() {
                     largest = largest.max(d.norm());
-                    // A vertex two hold is pressed sideways by one of them at least,
-                    // which the bound then counts.
-                    let across = holder
+                    // The first instrument holding it; a vertex two hold is pressed
+                    // sideways by one of them at least, which the bound then counts.
+                    let across = instruments[holders.trailing_zeros() as usize]
                         .current
-                        .map_or(d, |p| d - p.axis.into_inner() * p.axis.dot(&d));
+                        .map_or(d, |p| p.across(&d));
                     sideways = sideways.max(across.norm());
                     settle.jump[vi] = d;
                     self.jumped.push(v);
@@ -907,43 +900,6 @@ const SETTLE_REACH: f64 = 1.0;
 /// the mesh's). Only ticks whose jumps along the axis pass a radius pay it: a jab,
 /// not a press.
 const SETTLE_RINGS: usize = 12;
-
-/// Whether a held vertex at `x`, taken back this tick by the contact steps of
-/// `holder` after being let go this tick or the one before (`Settle::taken_back`),
-/// jumped by `d` as tissue springing back onto a still tip: the instrument has not
-/// moved since the last tick, the vertex lies on the tip's end (`hold::contact_normal`
-/// gives `−Z`), and the jump passes the radius, more along the axis than across it.
-/// Such a jump is settled like a first touch (see `settle`, "A vertex taken back is
-/// not settled", and `tests/contact_first_touch.rs`).
-///
-/// Each condition keeps out a jump that is no spring-back. The contact's hesitation
-/// at the edge of a held shaft's patch jumps 1 µm–0.54 mm; two instruments pushed
-/// through the liver jump up to 0.72 r, while they move. A shaft that swept the whole
-/// liver in one tick (`tests/contact_hard_cases.rs`) takes the tissue draped on it
-/// back by 6.6–39 mm, at least as far across the axis as along it, and on the still
-/// ticks after by up to 155 mm, mostly along it. Settled too (without the condition
-/// on the tip's end), those retakes led to a tick whose elastic step brought a
-/// triangle spanning the shaft, its corners 25–37 mm from the axis, within 1.1 mm of
-/// it; the edge pushes put it across the axis, the face push of a pierced triangle
-/// moved it 10 cm along its normal (`faces`), and a neighbour was left across the
-/// shaft, 4.9 mm inside.
-fn springs_back(holder: &Instrument, x: &Point3<f64>, d: &Vector3<f64>) -> bool {
-    let Some(pose) = holder.current.filter(|p| holder.previous == Some(*p)) else {
-        return false;
-    };
-    let z = pose.axis.into_inner();
-    let on_tip = contact_normal(
-        x,
-        &pose,
-        holder.active_length(),
-        holder.radius,
-        holder.tip_contact,
-    )
-    .is_some_and(|(m, _)| m == -z);
-    let along = z.dot(d);
-    let across = (d - z * along).norm();
-    on_tip && d.norm() > holder.radius && across < along.abs()
-}
 
 /// What [`ContactStage::settle_jumps`] settled.
 #[derive(Clone, Copy, Debug)]

@@ -29,8 +29,8 @@
 //! of any physical place within a second. Three times the substeps kept it bounded.
 //! (That press no longer lets its tissue go and jumps it back, nor does a jab of
 //! the same depth within a tick since the contact settles a jump along the axis
-//! whole; a 6 cm press at 1 m/s without friction still inverts elements, and
-//! without the twist leaves the liver at tick 53: `server/tests/explicit_inversion.rs`.)
+//! whole; a 6.5 cm press at 1 m/s without friction still inverts elements, and
+//! without the twist leaves the liver at tick 40: `server/tests/explicit_inversion.rs`.)
 //!
 //! The ratio is taken against `λ + 2μ` (the P-wave modulus, which sets the fastest
 //! wave the linear bound resolves) rather than against the largest scaling

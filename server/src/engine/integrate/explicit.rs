@@ -37,7 +37,7 @@ use crate::engine::scene::limits::MAX_TICK_WORK;
 /// Most the twist of inverted elements multiplies a tick's substeps by, where two
 /// stretches of an element sum to nearly zero and the twist stiffness has no bound;
 /// the count also stays within the tick-work bound [`MAX_TICK_WORK`], as the scene's
-/// own does. Such a tick takes up to 16 ticks' time. The 6 cm press at 1 m/s of
+/// own does. Such a tick takes up to 16 ticks' time. The 6.5 cm press at 1 m/s of
 /// `tests/explicit_inversion.rs` reaches the bound (3,520 substeps where the scene's
 /// are 220).
 pub const MAX_TWIST_FACTOR: f64 = 16.0;
