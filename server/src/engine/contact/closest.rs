@@ -74,8 +74,8 @@ pub fn closest_edge_axis(
     let z = pose.axis.into_inner();
     let r = a - pose.tip;
     let e = b - a;
-    let r_perp = r - z * r.dot(&z);
-    let e_perp = e - z * e.dot(&z);
+    let r_perp = pose.across(&r);
+    let e_perp = pose.across(&e);
     let ee = e_perp.norm_squared();
     let (alpha, beta) = if ee.sqrt() <= PARALLEL * e.norm() || ee == 0.0 {
         let (ha, hb) = (r.dot(&z), (r + e).dot(&z));

@@ -72,7 +72,7 @@ pub(super) fn push_out(
                 -z
             } else {
                 let n = surface.vertex_normal(v, x);
-                (n - z * n.dot(&z))
+                pose.across(&n)
                     .try_normalize(1e-6)
                     .unwrap_or_else(|| perpendicular(&z).into_inner())
             };

@@ -39,7 +39,7 @@ pub fn shaft_normal(
         };
         let mid = Point3::from((xa.coords + xb.coords) * 0.5);
         let to_axis = pose.tip - mid;
-        let w = to_axis - z * to_axis.dot(&z);
+        let w = pose.across(&to_axis);
         let c = z.cross(&dir);
         crossed += if c.dot(&w) < 0.0 { -c } else { c };
         toward += w.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
@@ -51,6 +51,6 @@ pub fn shaft_normal(
     } else {
         toward
     };
-    let direction = direction - z * direction.dot(&z);
+    let direction = pose.across(&direction);
     Unit::try_new(direction, 1e-12 * count)
 }

@@ -84,7 +84,7 @@ proptest! {
             check_valid(&e, &pose, length, c);
         }
         let scale = e.scale();
-        let shadow = (dir - pose.axis.into_inner() * dir.dot(&pose.axis)).norm();
+        let shadow = pose.across(&dir).norm();
         let (s0, s1) = (s_at(&e, &pose, 0.0), s_at(&e, &pose, 1.0));
         if shadow <= 1e-3 * scale || !(s0 * s1 < 0.0 && s0.abs().min(s1.abs()) > 1e-9 * scale * scale) {
             return Ok(());
