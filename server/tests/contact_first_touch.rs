@@ -202,11 +202,11 @@ fn without_settling_the_first_contact_tick_spikes() {
 /// hold reports within 2× of the force it settles to. The first tick's jumps pass
 /// the radius four times over, far out of the tangent's reach; the corotational
 /// model's own forces are brought back into balance around them by the settling's
-/// Newton passes (`engine/contact/settle.rs`). Without them
-/// the default scene's first tick gave 1.55 N against 0.55 N steady, and at
-/// E = 100 kPa, ν = 0.49, 264 N against 16.6 N (15.9× with Newton passes on the
-/// tick's own tangent); the linear model, settled the same way, 0.52 N against
-/// 0.61 N. Stiff and nearly incompressible tissue: the test after this one.
+/// Newton passes (`engine/contact/settle.rs`). Without them the default scene's
+/// first tick gave 1.55 N against 0.55 N steady, and at E = 100 kPa, ν = 0.49,
+/// 264 N against 16.6 N (15.9× with Newton passes on the tick's own tangent); the
+/// linear model, settled the same way, 0.52 N against 0.61 N. Stiff and nearly
+/// incompressible tissue: the test after this one.
 ///
 /// The held set the contact steps choose by geometry is made unilateral within the
 /// tick: what the settled tissue pulls away is let go and the tissue relaxed around

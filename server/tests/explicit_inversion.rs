@@ -4,16 +4,16 @@
 //! withdrawn. The press turns elements inside out, whose twist stiffness passes the
 //! linear bound the substep count was set by (`engine/elastic/twist.rs`). With the
 //! scene's substep count alone, the middle press leaves the ±100 m of any physical
-//! place at tick 40. Every run must stay finite and within [`FARTHEST`] of rest, and must
-//! have needed the extra substeps.
+//! place at tick 40. Every run must stay finite and within [`FARTHEST`] of rest,
+//! and must have needed the extra substeps.
 //!
 //! The press is run as a grid of nine neighbours ([`SPEEDS`] × [`OFFSETS`]), not one:
 //! after the first inversions the motion is chaotic, and how far the tissue rings
 //! is not a property of the step. Across the grid the farthest vertex goes 78–106
 //! mm; summing each node's settling force in another order, a change of round-off
-//! alone, once took the middle press (then 6 cm deep) from 90.7 to 200.9 mm (634 J). What is asserted is
-//! what the twist substeps are for: every run finite and bounded ([`FARTHEST`]),
-//! where the scene's substeps alone run away.
+//! alone, once took the middle press (then 6 cm deep) from 90.7 to 200.9 mm
+//! (634 J). What is asserted is what the twist substeps are for: every run finite
+//! and bounded ([`FARTHEST`]), where the scene's substeps alone run away.
 //!
 //! (Until the contact's settling took a jump along the instrument's axis whole, a
 //! 3.5 cm jab at 2 m/s did this, and the README's press before the tip's hold was
