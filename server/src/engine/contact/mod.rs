@@ -15,7 +15,8 @@
 //!
 //! - [`stage`]: the stage around the elastic step — held vertices follow their
 //!   instrument, then per instrument the steps below in sub-moves of at most 2° of
-//!   turn, then hold and release; the tick's report for the force model.
+//!   turn, then hold and release (`stage/holding`), the settling and what it lets go
+//!   (`stage/settling`); the tick's report for the force model (`stage/reaction`).
 //! - [`broadphase`]: parry's BVH over the surface triangles' motion in the instrument's
 //!   frame; every triangle that may have met the instrument, at any speed.
 //! - `edges`: colliding edges and confidence intervals (§2.3–2.4).

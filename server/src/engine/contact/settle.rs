@@ -98,7 +98,7 @@
 //! vertices that takes away the force their instrument gave them and keeps the
 //! force on the other free nodes, as the settling keeps it. Then the released
 //! vertices' neighbours carry what they would carry without them, and the stage
-//! looks again, a few rounds (`stage::RELEASE_ROUNDS`). That tick then reported
+//! looks again, a few rounds (`stage::settling::RELEASE_ROUNDS`). That tick then reported
 //! 9.2 N and the next ones 11.0–11.3 N; the first ticks of a pose 3 cm in, at
 //! ν = 0.49, at most 72.9 N against 31.7 N (a later retake), where the second had
 //! given 162 N. Only ticks whose largest settled jump passes the instrument's

@@ -39,23 +39,26 @@
 //! this stage does not tunnel: an instrument crossing the whole liver in one tick finds
 //! every edge it crossed and stops each at its confidence interval.
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 
 use super::broadphase::{Box3, BroadPhase};
 use super::edges::stop_colliding_edges;
-use super::hold::{
-    Hold, MAX_SLIDE, MIN_SLIDE, adhesion, contact_normal, pulled_away, shaft_press, stays_held,
-    tip_press,
-};
+use super::hold::contact_normal;
 use super::instrument::Instrument;
 use super::pose::{InstrumentPose, rigid_motion};
 use super::push::push_out;
 use super::scratch::{ContactStats, Scratch};
-use super::settle::{RINGS, Settle};
+use super::settle::Settle;
 use super::tip::{Reach, nearest_point, press_tip};
-use crate::engine::elastic::{BlockMatrix, ElasticModel, Formulation};
+use crate::engine::elastic::{BlockMatrix, ElasticModel};
 use crate::engine::integrate::{Imposed, State};
 use crate::engine::mesh::Surface;
+use holding::let_go;
+use settling::Settled;
+
+mod holding;
+mod reaction;
+mod settling;
 
 /// The contact stage of a scene with instruments.
 #[derive(Debug)]
@@ -390,163 +393,6 @@ impl ContactStage {
         }
     }
 
-    /// Settles the free tissue around the held vertices the contact steps jumped this
-    /// tick (see `settle`), when the largest jump exceeds [`SETTLE_JUMP`] of the
-    /// smallest radius, unless the scene turns it off, each jump scaled down so that
-    /// the largest sideways part (across its instrument's axis) is at most
-    /// [`SETTLE_REACH`] radii; the region grows by a ring for every radius the largest
-    /// settled jump passes one radius by, up to [`SETTLE_RINGS`]. Past a radius, on
-    /// the corotational model and when no jump was scaled down, Newton passes on the
-    /// model's own force follow the linear settling (see `settle`); a sweep's scaled
-    /// jumps are settled linearly only (with the passes, the whole-liver sweep of
-    /// `tests/contact_hard_cases.rs` left a triangle 4.9 mm inside the shaft). Returns
-    /// the rings it settled, if it did, and then leaves in `rel_start` the surface as
-    /// the settling found it.
-    fn settle_jumps(
-        &mut self,
-        instruments: &[Instrument],
-        surface: &Surface,
-        model: &ElasticModel,
-        tangent: &BlockMatrix,
-        state: &mut State,
-        imposed: &Imposed,
-    ) -> Option<Settled> {
-        let radius = instruments
-            .iter()
-            .filter(|i| i.current.is_some())
-            .map(|i| i.radius)
-            .fold(f64::INFINITY, f64::min);
-        let settle = self.settle.as_mut()?;
-        self.jumped.clear();
-        let (mut largest, mut sideways): (f64, f64) = (0.0, 0.0);
-        for &v in &surface.vertices {
-            let vi = v as usize;
-            let holders = self.holders[vi];
-            if holders != 0 && !self.s.fixed[vi] && !settle.taken_back(v) {
-                let d = state.x[vi] - self.end[vi];
-                if d != Vector3::zeros() {
-                    largest = largest.max(d.norm());
-                    // The first instrument holding it; a vertex two hold is pressed
-                    // sideways by one of them at least, which the bound then counts.
-                    let across = instruments[holders.trailing_zeros() as usize]
-                        .current
-                        .map_or(d, |p| p.across(&d));
-                    sideways = sideways.max(across.norm());
-                    settle.jump[vi] = d;
-                    self.jumped.push(v);
-                }
-            }
-        }
-        if largest <= SETTLE_JUMP * radius {
-            for &v in &self.jumped {
-                settle.jump[v as usize] = Vector3::zeros();
-            }
-            return None;
-        }
-        let scale = (SETTLE_REACH * radius / sideways).min(1.0);
-        if scale < 1.0 {
-            for &v in &self.jumped {
-                settle.jump[v as usize] *= scale;
-            }
-        }
-        let beyond = (largest * scale / radius - 1.0).max(0.0).ceil() as usize;
-        let rings = (RINGS + beyond).min(SETTLE_RINGS);
-        // Where the settling starts from: its moves are motion, which the final
-        // rounds analyse as such.
-        for &v in &surface.vertices {
-            self.s.rel_start[v as usize] = state.x[v as usize];
-        }
-        let nonlinear =
-            (scale == 1.0 && largest > radius && model.formulation == Formulation::Corotational)
-                .then_some((model, &self.end[..]));
-        settle.settle(
-            tangent,
-            imposed.mask(),
-            &self.jumped,
-            rings,
-            nonlinear,
-            &mut state.x,
-        );
-        Some(Settled {
-            rings,
-            past_radius: largest * scale > radius,
-        })
-    }
-
-    /// After a settling whose largest jump passed the radius: lets go of the held
-    /// vertices the contact steps moved this tick and the settled tissue pulls away
-    /// from their instrument (the normal part of Coulomb's law, `hold::pulled_away`,
-    /// on the model's force at each, with the instrument's adhesion), relaxes the
-    /// tissue around them ([`Settle::relax`], over the settling's `rings`), and again,
-    /// up to [`RELEASE_ROUNDS`] times, until none is let go: the held set the contact
-    /// steps chose by geometry made unilateral within the tick (see `settle`, "A held
-    /// set that pulls").
-    fn release_pulled(
-        &mut self,
-        instruments: &mut [Instrument],
-        model: &ElasticModel,
-        tangent: &BlockMatrix,
-        state: &mut State,
-        imposed: &mut Imposed,
-        rings: usize,
-    ) {
-        let Some(settle) = &mut self.settle else {
-            return;
-        };
-        for _ in 0..RELEASE_ROUNDS {
-            self.released.clear();
-            for (k, ins) in instruments.iter_mut().enumerate() {
-                let Some(pose) = ins.current else { continue };
-                let (length, radius, tip_contact) =
-                    (ins.active_length(), ins.radius, ins.tip_contact);
-                let x = &state.x;
-                // The tissue's reaction on each held vertex, in the order of `held`.
-                self.reactions.clear();
-                self.reactions.extend(
-                    ins.held
-                        .iter()
-                        .map(|&v| -model.negated_elastic_force_on(v, x)),
-                );
-                let adhesion = adhesion(self.reactions.iter().map(|f| f.norm()));
-                let bit = 1u8 << k;
-                let (holders, slide, fixed) = (&mut self.holders, &mut self.slide, &self.s.fixed);
-                let (released, end) = (&mut self.released, &self.end);
-                let mut reactions = self.reactions.iter();
-                ins.held.retain(|&v| {
-                    let reaction = reactions.next().expect("one reaction per held vertex");
-                    // Only what the contact steps moved this tick: the rest was
-                    // judged by the same law after the elastic step.
-                    if x[v as usize] == end[v as usize] {
-                        return true;
-                    }
-                    let Some((m, _)) =
-                        contact_normal(&x[v as usize], &pose, length, radius, tip_contact)
-                    else {
-                        return true;
-                    };
-                    if !pulled_away(-reaction.dot(&m), adhesion) {
-                        return true;
-                    }
-                    if let_go(v, bit, holders, slide, fixed, imposed, Some(&mut *settle)) {
-                        released.push(v);
-                    }
-                    false
-                });
-            }
-            if self.released.is_empty() {
-                break;
-            }
-            settle.relax(
-                tangent,
-                imposed.mask(),
-                &self.released,
-                rings,
-                model,
-                &mut state.x,
-            );
-        }
-    }
-
     /// A sub-move of instrument `k` ending at `to`, the surface having moved from
     /// `rel_start` to `x` in the instrument's frame: the candidates over that sweep
     /// (the broad phase refitted to it), then, with shaft contact, every edge that
@@ -641,203 +487,6 @@ impl ContactStage {
         let tip = press_tip(&mut self.s, surface, to, ins.radius, reach, x);
         ins.report.tip = tip.or(ins.report.tip);
     }
-
-    /// Holds the vertices moved for instrument `k`; slides those the tissue drags
-    /// harder than friction allows, and releases those it pulls away.
-    fn hold_and_release(
-        &mut self,
-        k: usize,
-        ins: &mut Instrument,
-        surface: &Surface,
-        model: &ElasticModel,
-        state: &State,
-        imposed: &mut Imposed,
-    ) {
-        let bit = 1u8 << k;
-        let pose = ins.current.expect("only instruments in the body hold");
-        let length = ins.active_length();
-        // Adhesion: a pull-away below a tenth of the mean force on the instrument's
-        // held vertices does not release (see `stays_held`).
-        let adhesion = adhesion(ins.held.iter().map(|&v| state.reaction[v as usize].norm()));
-        let ins_params = (ins.tip_contact, ins.friction, adhesion);
-        let radius = ins.radius;
-        let holders = &mut self.holders;
-        let slide = &mut self.slide;
-        let settle = &mut self.settle;
-        let s = &self.s;
-        ins.held.retain(|&v| {
-            let vi = v as usize;
-            if s.moved_mark[vi] == s.mark {
-                return true;
-            }
-            let hold = stays_held(
-                &state.x[vi],
-                &state.reaction[vi],
-                &pose,
-                (length, radius),
-                ins_params,
-                || tip_press(surface, v, &pose.tip, radius, &state.x),
-                || shaft_press(surface, v, &pose, length, radius, &state.x),
-            );
-            let keep = match hold {
-                Hold::Stick => true,
-                Hold::Slip(tangent, excess) => {
-                    // Slide along the instrument until the drag is back on the
-                    // friction cone: the tissue's pull changes by −K_ii δ, so a step
-                    // δ = excess / (t̂·K_ii·t̂) along t̂ takes the excess away (to first
-                    // order; the vertex's neighbours do not move with it).
-                    // The slide is applied with the next tick's rigid motion, before
-                    // the contact steps, so that they keep the surface out of the
-                    // instrument as for any other move.
-                    // A slide longer than half the radius is no small creep along
-                    // the instrument but the tissue tearing away from it: let go.
-                    let kii = model.stiffness.get(v, v).unwrap_or_else(Matrix3::zeros);
-                    let stiffness = tangent.dot(&(kii * tangent.into_inner()));
-                    let step = excess / stiffness;
-                    if stiffness > 0.0 && step <= MAX_SLIDE * radius {
-                        if step >= MIN_SLIDE * radius {
-                            slide[vi] = tangent.into_inner() * step;
-                        }
-                        true
-                    } else {
-                        false
-                    }
-                }
-                Hold::Release => false,
-            };
-            if !keep {
-                let_go(v, bit, holders, slide, &s.fixed, imposed, settle.as_mut());
-            }
-            keep
-        });
-        self.hold(k, ins, state, imposed);
-    }
-
-    /// Holds the vertices moved for instrument `k`, where they are now.
-    fn hold(&mut self, k: usize, ins: &mut Instrument, state: &State, imposed: &mut Imposed) {
-        let bit = 1u8 << k;
-        for &v in &self.s.moved {
-            let vi = v as usize;
-            if self.holders[vi] & bit == 0 {
-                self.holders[vi] |= bit;
-                ins.held.push(v);
-            }
-            imposed.set(v, state.x[vi]);
-        }
-    }
-
-    /// The tissue's force on the instrument: the elastic reactions on what it holds,
-    /// from the elastic model's own force (corotational: the rotations around each
-    /// held vertex extracted afresh; the linear `K u` would count the turn of tissue
-    /// pushed aside as strain, and the calibrated force model would render it). With
-    /// the scene's `contact.footprint`, the reactions on the tip's end are scaled to
-    /// the tip's own footprint, and those on the shaft's side to the strip the shaft
-    /// presses (see `footprint`).
-    fn report_reaction(
-        &self,
-        ins: &mut Instrument,
-        surface: &Surface,
-        model: &ElasticModel,
-        state: &State,
-    ) {
-        let mut total = Vector3::zeros();
-        ins.report.held_reactions.clear();
-        for &v in &ins.held {
-            let ku = model.negated_elastic_force_on(v, &state.x);
-            ins.report.held_reactions.push(-ku);
-            total -= ku;
-        }
-        ins.report.reaction = total;
-        let Some(pose) = ins.current.filter(|_| self.footprint) else {
-            return;
-        };
-        let (length, radius, tip_contact) = (ins.active_length(), ins.radius, ins.tip_contact);
-        let z = pose.axis.into_inner();
-        let on_tip = |v: u32| {
-            tip_contact
-                && contact_normal(&state.x[v as usize], &pose, length, radius, true)
-                    .is_some_and(|(m, _)| m == -z)
-        };
-        let held = &ins.held;
-        let report = &mut ins.report;
-        let patch = |tip: bool| {
-            held.iter()
-                .zip(&report.held_reactions)
-                .filter(move |(v, _)| on_tip(**v) == tip)
-                .map(|(&v, &f)| (v, f))
-        };
-        // The shaft's side, then the tip's end.
-        let scales = [
-            super::footprint::shaft_scale(
-                patch(false),
-                surface,
-                &state.x,
-                (&pose.tip, &pose.axis),
-                radius,
-            ),
-            super::footprint::tip_scale(patch(true), surface, &state.x, &pose.axis, radius),
-        ];
-        if scales.iter().all(|&s| s >= 1.0) {
-            return;
-        }
-        let mut cut_total = Vector3::zeros();
-        for (&v, f) in held.iter().zip(report.held_reactions.iter_mut()) {
-            let cut = (1.0 - scales[usize::from(on_tip(v))]) * *f;
-            *f -= cut;
-            cut_total += cut;
-        }
-        report.reaction -= cut_total;
-    }
-
-    /// The shaft's neighbouring edges (§3): candidate edges with a held end that lie
-    /// along the shaft, within 1.5 r of it.
-    fn collect_shaft_edges(&self, ins: &mut Instrument, surface: &Surface, state: &State) {
-        let Some(pose) = ins.current else { return };
-        if !ins.shaft_contact {
-            return;
-        }
-        for &e in &self.s.edges {
-            let [a, b] = surface.edges[e as usize];
-            let held = |v: u32| self.holders[v as usize] != 0;
-            if held(a) || held(b) {
-                let c = super::closest::closest_edge_axis(
-                    &state.x[a as usize],
-                    &state.x[b as usize],
-                    &pose,
-                    ins.length,
-                );
-                if c.beta > 0.0 && c.distance() <= 1.5 * ins.radius {
-                    ins.report.shaft_edges.push(e);
-                }
-            }
-        }
-    }
-}
-
-/// Instrument `bit` lets go of vertex `v`: its slide is dropped, and it is freed
-/// unless another instrument holds it or it is a support; `settle`, when given,
-/// remembers that it was let go ([`Settle::taken_back`]). Returns whether it was
-/// freed.
-fn let_go(
-    v: u32,
-    bit: u8,
-    holders: &mut [u8],
-    slide: &mut [Vector3<f64>],
-    fixed: &[bool],
-    imposed: &mut Imposed,
-    settle: Option<&mut Settle>,
-) -> bool {
-    let vi = v as usize;
-    if let Some(settle) = settle {
-        settle.let_go(v);
-    }
-    slide[vi] = Vector3::zeros();
-    holders[vi] &= !bit;
-    let freed = holders[vi] == 0 && !fixed[vi];
-    if freed {
-        imposed.release(v);
-    }
-    freed
 }
 
 /// How far the instrument's surface may draw back from a held vertex in one tick,
@@ -865,58 +514,6 @@ fn let_go(
 /// a retreat of two radii or more carries the tissue at most that far past where it
 /// would go.
 pub(super) const MAX_RETREAT: f64 = 2.0;
-
-/// The largest jump of a held vertex, as a fraction of the radius, below which the
-/// tissue is not settled around the jumps.
-const SETTLE_JUMP: f64 = 1e-3;
-
-/// The largest sideways jump (across the instrument's axis) the tissue is settled
-/// around, as a fraction of the smallest radius; larger jumps are settled as if
-/// scaled down to it. The settling is a linear static correction. Around the
-/// jumps of a whole-liver sweep in one tick, 10 cm across the shaft, it carried the
-/// free tissue beside the swept strip 13 mm sideways across the shaft's path, so that
-/// the strip's two sides crossed over the shaft (liver-5k, SOFA's liver refined once;
-/// `tests/contact_hard_cases.rs`). A sideways jump larger than the instrument is a
-/// gross move, which the next elastic steps carry the tissue through.
-///
-/// A jump along the axis is settled whole: the tip pushing tissue ahead of it into
-/// the body, however far in one tick. Scaled down like a sideways one, the 3.5 cm
-/// jab of `tests/explicit_chatter.rs` (ν = 0.499) left 1.04 J of strain energy in the
-/// tissue around the jump, 25 times the held press's 0.042 J, and reported 78 N on
-/// its tick against 2.35 N steady. The implicit step took that energy out by its own
-/// dissipation; the explicit step turned it into 0.5 J of ringing that let the
-/// tissue go and caught it again with 54–104 N jumps for the rest of the hold.
-const SETTLE_REACH: f64 = 1.0;
-
-/// The most rings of free nodes settled around a jump ([`RINGS`] for jumps up to a
-/// radius, one more for every further radius). A jump the size of the instrument
-/// moves the tissue beside it by as much, which three rings of a coarse mesh (3 cm)
-/// cut off: the 3.5 cm jab settled whole within three rings left 0.14 J and rang
-/// explicitly (the held set changing 9 times in a second, an 18 N retake); within
-/// five rings or more it held steadily (within ten, 0.08 J left). Each three rings
-/// take [`MAX_ITERATIONS`](super::settle::MAX_ITERATIONS) more iterations, so a tick
-/// settles with at most four times the usual iterations, over a region up to twelve
-/// rings deep (on a fine mesh up to (12/3)³ = 64 times as many nodes; never more than
-/// the mesh's). Only ticks whose jumps along the axis pass a radius pay it: a jab,
-/// not a press.
-const SETTLE_RINGS: usize = 12;
-
-/// What [`ContactStage::settle_jumps`] settled.
-#[derive(Clone, Copy, Debug)]
-struct Settled {
-    /// The rings of free nodes around the jumps.
-    rings: usize,
-    /// Whether the largest settled jump passed the instrument's radius.
-    past_radius: bool,
-}
-
-/// Rounds of letting go of what the settled tissue pulls away and relaxing around it
-/// ([`ContactStage::release_pulled`]). A relaxation can leave another held vertex
-/// pulled: a tip posed 1 cm into tissue of 100 kPa, ν = 0.49, let three go, then
-/// one more, then none. Six rounds changed none of the first-pose figures of
-/// `tests/contact_first_touch.rs`; each round costs a CG solve over the region, on
-/// settled ticks only.
-const RELEASE_ROUNDS: usize = 3;
 
 /// Largest turn of the axis per sub-move, rad (2°). Over a sub-move each vertex moves
 /// on a straight line in the instrument's frame while the instrument turns about its
