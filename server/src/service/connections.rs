@@ -36,24 +36,31 @@
 //! connection closed when its answer does not come within
 //! [`ConnectionLimits::keepalive_timeout`]) is hyper's and set on tonic's builder;
 //! it finds a peer that vanished while a stream is open.
+//!
+//! Files: this one, the limits and the accept loop ([`incoming`]); `peers`, the
+//! count per peer and the refusals' log; `conn`, an accepted connection's idle
+//! timer and severance; `streams`, the layer that counts a connection's streams.
 
-use std::collections::HashMap;
-use std::future::Future;
 use std::io;
-use std::net::{IpAddr, Ipv6Addr};
-use std::pin::Pin;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
-use std::task::{Context, Poll, Waker};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
-use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpListener;
 use tokio::sync::mpsc;
-use tokio::time::{Instant, Sleep};
+use tokio::time::Instant;
 use tokio_stream::wrappers::ReceiverStream;
-use tokio_util::sync::{CancellationToken, WaitForCancellationFutureOwned};
-use tonic::transport::server::{Connected, TcpConnectInfo};
+use tokio_util::sync::CancellationToken;
+use tonic::transport::server::TcpConnectInfo;
+
+mod conn;
+mod peers;
+mod streams;
+
+pub use conn::Conn;
+pub use peers::{PeerCounts, REFUSAL_LOG_INTERVAL, REFUSAL_LOG_PEERS};
+use peers::{PeerRefusals, log_summary, peer_key};
+pub use streams::{ConnInfo, CountStreams, CountStreamsLayer, Counted, StreamGuard};
 
 /// First sleep of the accept loop when the process is out of file descriptors.
 pub const FD_BACKOFF_MIN: Duration = Duration::from_millis(50);
@@ -61,14 +68,6 @@ pub const FD_BACKOFF_MIN: Duration = Duration::from_millis(50);
 /// at most one failed `accept` a second, and a server that waits at most this long
 /// to serve again once descriptors free up.
 pub const FD_BACKOFF_MAX: Duration = Duration::from_secs(1);
-
-/// How long a peer refused past its limit is logged once for, and how often the
-/// refusals of an interval are summed up in one line.
-pub const REFUSAL_LOG_INTERVAL: Duration = Duration::from_secs(10);
-/// Most peers logged by address in one [`REFUSAL_LOG_INTERVAL`]; the others are
-/// only counted in the interval's summary, so that many peers cannot grow the log
-/// (nor the memory of who was logged) without bound.
-pub const REFUSAL_LOG_PEERS: usize = 16;
 
 /// Limits on the server's connections.
 #[derive(Clone, Copy, Debug)]
@@ -107,51 +106,6 @@ impl Severance {
     }
 }
 
-/// The open streams of one connection.
-#[derive(Debug, Default)]
-struct Streams {
-    open: AtomicUsize,
-    /// Streams ever begun: an idle period restarts when this changes.
-    begun: AtomicU64,
-    /// The connection's task, woken when its last stream ends.
-    waker: Mutex<Option<Waker>>,
-}
-
-/// What a request knows of its connection (tonic's connect info): its addresses and
-/// its stream count.
-#[derive(Clone, Debug)]
-pub struct ConnInfo {
-    pub tcp: TcpConnectInfo,
-    streams: Arc<Streams>,
-}
-
-/// Holds one stream of a connection open until dropped.
-pub struct StreamGuard(Arc<Streams>);
-
-impl StreamGuard {
-    fn new(streams: Arc<Streams>) -> Self {
-        streams.begun.fetch_add(1, Ordering::AcqRel);
-        streams.open.fetch_add(1, Ordering::AcqRel);
-        StreamGuard(streams)
-    }
-}
-
-impl Drop for StreamGuard {
-    fn drop(&mut self) {
-        if self.0.open.fetch_sub(1, Ordering::AcqRel) == 1 {
-            let waker = self
-                .0
-                .waker
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .take();
-            if let Some(w) = waker {
-                w.wake();
-            }
-        }
-    }
-}
-
 /// Counts the open connections of a server.
 #[derive(Debug, Default)]
 pub struct OpenCount(AtomicUsize);
@@ -173,150 +127,6 @@ impl OpenCount {
     }
 }
 
-/// The address a peer is counted under, `None` for loopback (not counted per
-/// peer): an IPv4-mapped IPv6 address as IPv4, an IPv6 one as its /64.
-fn peer_key(ip: IpAddr) -> Option<IpAddr> {
-    let ip = ip.to_canonical();
-    if ip.is_loopback() {
-        return None;
-    }
-    Some(match ip {
-        IpAddr::V4(_) => ip,
-        IpAddr::V6(v6) => IpAddr::V6(Ipv6Addr::from(u128::from(v6) & !(u64::MAX as u128))),
-    })
-}
-
-/// Counts the open connections of each peer address (only those with one open:
-/// at most the server's connection limit of entries).
-#[derive(Debug, Default)]
-pub struct PeerCounts(Mutex<HashMap<IpAddr, usize>>);
-
-impl PeerCounts {
-    /// Connections open now from the peer counted as `key`.
-    pub fn get(&self, key: IpAddr) -> usize {
-        let counts = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        counts.get(&key).copied().unwrap_or(0)
-    }
-
-    /// A slot for peer `key` if it has fewer than `max` open.
-    fn take(self: &Arc<Self>, key: IpAddr, max: usize) -> Option<PeerSlot> {
-        let mut counts = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        let n = counts.entry(key).or_insert(0);
-        if *n >= max {
-            if *n == 0 {
-                counts.remove(&key);
-            }
-            return None;
-        }
-        *n += 1;
-        Some(PeerSlot {
-            counts: self.clone(),
-            key,
-        })
-    }
-}
-
-/// One connection of a peer, released when dropped.
-#[derive(Debug)]
-struct PeerSlot {
-    counts: Arc<PeerCounts>,
-    key: IpAddr,
-}
-
-impl Drop for PeerSlot {
-    fn drop(&mut self) {
-        let mut counts = self.counts.0.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(n) = counts.get_mut(&self.key) {
-            *n -= 1;
-            if *n == 0 {
-                counts.remove(&self.key);
-            }
-        }
-    }
-}
-
-/// The refusals of peers past their limit in the current
-/// [`REFUSAL_LOG_INTERVAL`]: the first of each peer is logged (up to
-/// [`REFUSAL_LOG_PEERS`] peers), and at the interval's end one line sums them up.
-#[derive(Debug)]
-struct PeerRefusals {
-    since: Instant,
-    /// Peers logged this interval, and how many of their connections were refused.
-    logged: HashMap<IpAddr, u64>,
-    /// Connections refused this interval from peers past [`REFUSAL_LOG_PEERS`].
-    unlogged: u64,
-}
-
-/// What [`PeerRefusals`] says of an interval that ended.
-#[derive(Debug, PartialEq, Eq)]
-struct RefusalSummary {
-    connections: u64,
-    /// Peers logged by address; more may have been refused unnamed.
-    named_peers: usize,
-    /// Connections refused from peers not named.
-    unnamed: u64,
-}
-
-impl PeerRefusals {
-    fn new(now: Instant) -> Self {
-        PeerRefusals {
-            since: now,
-            logged: HashMap::new(),
-            unlogged: 0,
-        }
-    }
-
-    /// When the current interval ends, if it holds refusals to sum up.
-    fn due(&self) -> Option<Instant> {
-        (!self.logged.is_empty()).then_some(self.since + REFUSAL_LOG_INTERVAL)
-    }
-
-    /// Ends the interval if it is over: its summary, if it refused anything.
-    fn roll(&mut self, now: Instant) -> Option<RefusalSummary> {
-        if now < self.since + REFUSAL_LOG_INTERVAL {
-            return None;
-        }
-        let summary = (!self.logged.is_empty()).then(|| RefusalSummary {
-            connections: self.logged.values().sum::<u64>() + self.unlogged,
-            named_peers: self.logged.len(),
-            unnamed: self.unlogged,
-        });
-        *self = PeerRefusals::new(now);
-        summary
-    }
-
-    /// Counts a refusal of `peer`: `true` if it is to be logged (its first this
-    /// interval, and room for its address).
-    fn refuse(&mut self, peer: IpAddr) -> bool {
-        if let Some(n) = self.logged.get_mut(&peer) {
-            *n += 1;
-            return false;
-        }
-        if self.logged.len() >= REFUSAL_LOG_PEERS {
-            self.unlogged += 1;
-            return false;
-        }
-        self.logged.insert(peer, 1);
-        true
-    }
-}
-
-/// Logs the summary of an interval of refusals.
-fn log_summary(summary: RefusalSummary, per_peer: usize) {
-    tracing::warn!(
-        "refused {} connections in the last {} s from peers at their limit of {per_peer} \
-         (--max-connections-per-peer): {} peers named above{}",
-        summary.connections,
-        REFUSAL_LOG_INTERVAL.as_secs(),
-        summary.named_peers,
-        if summary.unnamed > 0 {
-            format!(", {} connections from others", summary.unnamed)
-        } else {
-            String::new()
-        }
-    );
-}
-
 /// One counted connection, released when dropped.
 #[derive(Debug)]
 struct Slot(Arc<OpenCount>);
@@ -324,130 +134,6 @@ struct Slot(Arc<OpenCount>);
 impl Drop for Slot {
     fn drop(&mut self) {
         self.0.0.fetch_sub(1, Ordering::AcqRel);
-    }
-}
-
-/// An accepted TCP connection (see the module documentation).
-pub struct Conn {
-    io: TcpStream,
-    info: ConnInfo,
-    idle_for: Duration,
-    idle: Pin<Box<Sleep>>,
-    /// The value of `begun` the idle timer was armed at; `None`: a stream is open.
-    armed_at: Option<u64>,
-    severed: Pin<Box<WaitForCancellationFutureOwned>>,
-    _slot: Slot,
-    /// Its peer's count; `None` for loopback.
-    _peer: Option<PeerSlot>,
-}
-
-impl Conn {
-    /// The error that ends the connection now, if any; registers the task to be
-    /// woken when that may change.
-    fn check(&mut self, cx: &mut Context<'_>) -> Option<io::Error> {
-        if self.severed.as_mut().poll(cx).is_ready() {
-            return Some(io::Error::new(
-                io::ErrorKind::ConnectionAborted,
-                "the server shut down",
-            ));
-        }
-        let streams = &self.info.streams;
-        if streams.open.load(Ordering::Acquire) > 0 {
-            *streams.waker.lock().unwrap_or_else(|e| e.into_inner()) = Some(cx.waker().clone());
-            // The last stream may have ended between the load and the store.
-            if streams.open.load(Ordering::Acquire) > 0 {
-                self.armed_at = None;
-                return None;
-            }
-        }
-        let begun = streams.begun.load(Ordering::Acquire);
-        if self.armed_at != Some(begun) {
-            self.armed_at = Some(begun);
-            self.idle.as_mut().reset(Instant::now() + self.idle_for);
-        }
-        if self.idle.as_mut().poll(cx).is_ready() {
-            return Some(io::Error::new(
-                io::ErrorKind::TimedOut,
-                format!("no stream for {} s", self.idle_for.as_secs_f64()),
-            ));
-        }
-        None
-    }
-
-    fn severed(&mut self, cx: &mut Context<'_>) -> Option<io::Error> {
-        self.severed
-            .as_mut()
-            .poll(cx)
-            .is_ready()
-            .then(|| io::Error::new(io::ErrorKind::ConnectionAborted, "the server shut down"))
-    }
-}
-
-impl Connected for Conn {
-    type ConnectInfo = ConnInfo;
-
-    fn connect_info(&self) -> ConnInfo {
-        self.info.clone()
-    }
-}
-
-impl AsyncRead for Conn {
-    fn poll_read(
-        self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
-        let this = self.get_mut();
-        if let Some(e) = this.check(cx) {
-            return Poll::Ready(Err(e));
-        }
-        Pin::new(&mut this.io).poll_read(cx, buf)
-    }
-}
-
-impl AsyncWrite for Conn {
-    fn poll_write(
-        self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &[u8],
-    ) -> Poll<io::Result<usize>> {
-        let this = self.get_mut();
-        if let Some(e) = this.severed(cx) {
-            return Poll::Ready(Err(e));
-        }
-        Pin::new(&mut this.io).poll_write(cx, buf)
-    }
-
-    fn poll_write_vectored(
-        self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        bufs: &[io::IoSlice<'_>],
-    ) -> Poll<io::Result<usize>> {
-        let this = self.get_mut();
-        if let Some(e) = this.severed(cx) {
-            return Poll::Ready(Err(e));
-        }
-        Pin::new(&mut this.io).poll_write_vectored(cx, bufs)
-    }
-
-    fn is_write_vectored(&self) -> bool {
-        self.io.is_write_vectored()
-    }
-
-    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        let this = self.get_mut();
-        if let Some(e) = this.severed(cx) {
-            return Poll::Ready(Err(e));
-        }
-        Pin::new(&mut this.io).poll_flush(cx)
-    }
-
-    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        let this = self.get_mut();
-        if let Some(e) = this.severed(cx) {
-            return Poll::Ready(Err(e));
-        }
-        Pin::new(&mut this.io).poll_shutdown(cx)
     }
 }
 
@@ -579,82 +265,6 @@ pub fn incoming(
     ReceiverStream::new(rx)
 }
 
-/// The layer of [`CountStreams`].
-#[derive(Clone, Copy, Debug, Default)]
-pub struct CountStreamsLayer;
-
-impl<S> tower_layer::Layer<S> for CountStreamsLayer {
-    type Service = CountStreams<S>;
-
-    fn layer(&self, inner: S) -> CountStreams<S> {
-        CountStreams(inner)
-    }
-}
-
-/// Holds a count of its connection's open streams for each request until the
-/// response body is dropped, and gives the request tonic's [`TcpConnectInfo`] (so
-/// that `Request::remote_addr` answers).
-#[derive(Clone, Debug)]
-pub struct CountStreams<S>(S);
-
-type BoxFuture<T> = Pin<Box<dyn Future<Output = T> + Send>>;
-
-impl<S, ReqBody, ResBody> tower_service::Service<http::Request<ReqBody>> for CountStreams<S>
-where
-    S: tower_service::Service<http::Request<ReqBody>, Response = http::Response<ResBody>>,
-    S::Future: Send + 'static,
-{
-    type Response = http::Response<Counted<ResBody>>;
-    type Error = S::Error;
-    type Future = BoxFuture<Result<Self::Response, S::Error>>;
-
-    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), S::Error>> {
-        self.0.poll_ready(cx)
-    }
-
-    fn call(&mut self, mut request: http::Request<ReqBody>) -> Self::Future {
-        let info = request.extensions().get::<ConnInfo>().cloned();
-        let guard = info.map(|info| {
-            request.extensions_mut().insert(info.tcp.clone());
-            StreamGuard::new(info.streams)
-        });
-        let response = self.0.call(request);
-        Box::pin(async move {
-            let response = response.await?;
-            Ok(response.map(|body| Counted {
-                body: Box::pin(body),
-                _guard: guard,
-            }))
-        })
-    }
-}
-
-/// A response body that keeps its stream counted until dropped.
-pub struct Counted<B> {
-    body: Pin<Box<B>>,
-    _guard: Option<StreamGuard>,
-}
-
-impl<B: http_body::Body> http_body::Body for Counted<B> {
-    type Data = B::Data;
-    type Error = B::Error;
-
-    fn poll_frame(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-    ) -> Poll<Option<Result<http_body::Frame<B::Data>, B::Error>>> {
-        self.body.as_mut().poll_frame(cx)
-    }
-
-    fn is_end_stream(&self) -> bool {
-        self.body.is_end_stream()
-    }
-
-    fn size_hint(&self) -> http_body::SizeHint {
-        self.body.size_hint()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -669,85 +279,6 @@ mod tests {
         drop(a);
         assert_eq!(open.get(), 1);
         assert!(open.take(2).is_some());
-    }
-
-    #[test]
-    fn a_peer_is_counted_by_address_loopback_not_at_all() {
-        let ip = |s: &str| s.parse::<IpAddr>().unwrap();
-        assert_eq!(peer_key(ip("127.0.0.1")), None);
-        assert_eq!(peer_key(ip("127.3.2.1")), None);
-        assert_eq!(peer_key(ip("::1")), None);
-        // Loopback through a dual-stack listener.
-        assert_eq!(peer_key(ip("::ffff:127.0.0.1")), None);
-        assert_eq!(peer_key(ip("192.0.2.7")), Some(ip("192.0.2.7")));
-        assert_eq!(peer_key(ip("::ffff:192.0.2.7")), Some(ip("192.0.2.7")));
-        // Any address of one /64 is the same peer; another /64 is another.
-        assert_eq!(
-            peer_key(ip("2001:db8:1:2:aaaa::1")),
-            Some(ip("2001:db8:1:2::"))
-        );
-        assert_eq!(
-            peer_key(ip("2001:db8:1:2:ffff:ffff:ffff:ffff")),
-            Some(ip("2001:db8:1:2::"))
-        );
-        assert_eq!(peer_key(ip("2001:db8:1:3::1")), Some(ip("2001:db8:1:3::")));
-    }
-
-    #[test]
-    fn a_peers_count_never_passes_its_limit_and_others_are_counted_apart() {
-        let counts = Arc::new(PeerCounts::default());
-        let (a, b) = ("192.0.2.1".parse().unwrap(), "192.0.2.2".parse().unwrap());
-        let first = counts.take(a, 2).unwrap();
-        let _second = counts.take(a, 2).unwrap();
-        assert!(counts.take(a, 2).is_none());
-        assert_eq!(counts.get(a), 2);
-        let other = counts.take(b, 2).unwrap();
-        drop(first);
-        assert_eq!(counts.get(a), 1);
-        assert!(counts.take(a, 2).is_some());
-        // A peer with nothing open leaves no entry behind.
-        drop(other);
-        assert!(!counts.0.lock().unwrap().contains_key(&b));
-    }
-
-    #[test]
-    fn refusals_are_logged_once_per_peer_and_interval_and_summed_up() {
-        let start = Instant::now();
-        let mut refusals = PeerRefusals::new(start);
-        assert_eq!(refusals.due(), None, "nothing to sum up");
-        let peer = |i: u32| IpAddr::from(std::net::Ipv4Addr::from(0xc000_0200 + i));
-        assert!(refusals.refuse(peer(0)));
-        for _ in 0..1000 {
-            assert!(!refusals.refuse(peer(0)), "said once");
-        }
-        for i in 1..100 {
-            assert_eq!(refusals.refuse(peer(i)), i < REFUSAL_LOG_PEERS as u32);
-        }
-        assert_eq!(refusals.logged.len(), REFUSAL_LOG_PEERS);
-        assert_eq!(refusals.due(), Some(start + REFUSAL_LOG_INTERVAL));
-        assert_eq!(refusals.roll(start + REFUSAL_LOG_INTERVAL / 2), None);
-        assert_eq!(
-            refusals.roll(start + REFUSAL_LOG_INTERVAL),
-            Some(RefusalSummary {
-                connections: 1000 + 100,
-                named_peers: REFUSAL_LOG_PEERS,
-                unnamed: 100 - REFUSAL_LOG_PEERS as u64,
-            })
-        );
-        // A new interval: the peer is said again, once.
-        assert!(refusals.refuse(peer(0)));
-        assert!(!refusals.refuse(peer(0)));
-    }
-
-    #[test]
-    fn a_stream_counts_until_its_guard_drops_and_wakes_the_connection() {
-        let streams = Arc::new(Streams::default());
-        let g = StreamGuard::new(streams.clone());
-        assert_eq!(streams.open.load(Ordering::Acquire), 1);
-        assert_eq!(streams.begun.load(Ordering::Acquire), 1);
-        drop(g);
-        assert_eq!(streams.open.load(Ordering::Acquire), 0);
-        assert_eq!(streams.begun.load(Ordering::Acquire), 1);
     }
 
     #[test]
