@@ -426,11 +426,18 @@ fn run(args: RunArgs) -> Result<(), String> {
             if report.converged {
                 ""
             } else {
-                " (NOT converged: raise mechanics.cg_max_iterations)"
+                " (NOT converged: a linear solve reached mechanics.cg_max_iterations, or the \
+                 solve its budget of iterations for the mesh or its 1000 rotation updates; \
+                 the state is the last iterate)"
             },
             start.elapsed().as_secs_f64() * 1e3,
             sim.max_displacement() * 1e3,
         );
+        // A diverged state is no answer: said as a time-stepped run says it, and not
+        // exported.
+        if let Some(fault) = headless::fault(&sim) {
+            return Err(format!("static solve: {fault}"));
+        }
     } else {
         let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
         let mut pvd = None;

@@ -183,6 +183,12 @@ pub struct Integrator {
     /// The turn below which the implicit and explicit steps keep an element's share
     /// of `K̂` (rad, [`TANGENT_TURN`] unless set).
     tangent_turn: f64,
+    /// The most CG iterations one static solve makes over all its rotation updates
+    /// (the tick-work bound's cap for the mesh, [`max_cg_iterations`], unless set):
+    /// see [`statics`].
+    ///
+    /// [`max_cg_iterations`]: crate::engine::scene::limits::max_cg_iterations
+    static_budget: u32,
     /// The threads of [`IntegratorConfig::threads`] besides the caller's (`None`
     /// for one thread).
     workers: Option<Workers>,
@@ -231,6 +237,7 @@ impl Integrator {
             interrupt: Interrupt::default(),
             corotated,
             tangent_turn: TANGENT_TURN,
+            static_budget: crate::engine::scene::limits::max_cg_iterations(n),
             workers: crew(count),
             parts,
             blocks32,
@@ -264,6 +271,13 @@ impl Integrator {
     /// Static solves always reassemble all of it.
     pub fn set_tangent_turn(&mut self, turn: f64) {
         self.tangent_turn = turn.max(0.0);
+    }
+
+    /// Sets the most CG iterations a static solve makes over all its rotation
+    /// updates, for tests: a scene cannot raise it past the tick-work bound's cap
+    /// for its mesh, the default.
+    pub fn set_static_budget(&mut self, iterations: u32) {
+        self.static_budget = iterations;
     }
 
     /// How many elements' shares of the corotational tangent the last step

@@ -15,7 +15,12 @@
 //! [`corotational`](crate::engine::elastic::corotational)), so a fixed point is an
 //! equilibrium. The iterations stop when the true nonlinear residual
 //! `‖(M g − K̂ u − o)_f‖`, with the rotations of the current `x`, meets the same
-//! tolerance as the linear solve, or after [`MAX_ROTATION_UPDATES`]. Each tick of the
+//! tolerance as the linear solve, or after [`MAX_ROTATION_UPDATES`], or when the CG
+//! iterations of all its linear solves together reach the tick-work bound's cap for
+//! the mesh ([`max_cg_iterations`](crate::engine::scene::limits::max_cg_iterations): the scene's `cg_max_iterations` bounds each
+//! solve, and a thousand solves at that cap would have been a thousand times the
+//! bound; liver-5k at E = 1 Pa under 1000 g ran one static tick of 141,153
+//! iterations, 74 s). Each tick of the
 //! static integrator starts from the last equilibrium, so a tick whose loads have not
 //! changed costs one rotation update and no CG iteration. Each linear solve stops at
 //! a tenth of the current nonlinear residual (or the tolerance, when tighter): an
@@ -97,8 +102,14 @@ pub(super) fn solve(
     } else {
         1
     };
+    // The CG iterations of all the updates together stay within the tick-work
+    // bound: the most a mesh of this size may be given for one tick.
+    let budget = it.static_budget;
     for _ in 0..updates {
         let mut inner = stop;
+        inner.max_iterations = inner
+            .max_iterations
+            .min(budget.saturating_sub(report.cg_iterations));
         // b = M g (linear) or M g − o + K_tw u (corotational, with the rotations
         // of x).
         let (k, twist) = match &mut it.corotated {
@@ -132,7 +143,7 @@ pub(super) fn solve(
             }
             None => (&model.stiffness, None),
         };
-        if it.interrupt.is_raised() {
+        if it.interrupt.is_raised() || inner.max_iterations == 0 {
             break;
         }
         for i in 0..model.vertex_count() {
