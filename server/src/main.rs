@@ -343,6 +343,18 @@ fn output_name(option: &str, path: &Path, ext: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// Ticks between the frames of `--export-every T` at ticks of `dt`: `T / dt`
+/// rounded, at least one (a period below the tick exports every tick).
+fn frame_interval(period: f64, dt: f64) -> u64 {
+    (period / dt).round().clamp(1.0, u64::MAX as f64) as u64
+}
+
+/// Frames a series writes over a run of `ticks` ticks with a frame every `interval`:
+/// the start, every `interval`-th tick, and the end unless it is one of those.
+fn series_frames(ticks: u64, interval: u64) -> u64 {
+    1 + ticks / interval + u64::from(!ticks.is_multiple_of(interval))
+}
+
 fn run(args: RunArgs) -> Result<(), String> {
     let series = args.export_every.as_deref().map(export_every).transpose()?;
     let mut outputs = Vec::new();
@@ -372,6 +384,30 @@ fn run(args: RunArgs) -> Result<(), String> {
                     "{option} {}: that is the {what} file this run reads; writing it would \
                      destroy it",
                     output.display()
+                ));
+            }
+        }
+    }
+    // An output that is a directory, a link or a device is refused now, not after
+    // the run (writing it refuses it too).
+    for (option, output) in &outputs {
+        laparo_server::output::writable_over(output).map_err(|e| format!("{option}: {e}"))?;
+    }
+    // Nor do the series' frames, beside its index, write over an input or --export.
+    if let Some((_, path)) = &series {
+        let frames = PvdSeries::new(path);
+        let others = inputs
+            .iter()
+            .map(|&(what, p)| (format!("the {what} file this run reads"), p))
+            .chain([("--export".to_string(), args.export.as_deref())]);
+        for (what, other) in others {
+            if let Some(other) = other.filter(|p| frames.may_write(p)) {
+                return Err(format!(
+                    "--export-every {}: its frames are named {}_NNNNNN.vtu beside it, and \
+                     one would write over {} ({what}); name the series otherwise",
+                    path.display(),
+                    path.file_stem().unwrap_or_default().to_string_lossy(),
+                    other.display()
                 ));
             }
         }
@@ -442,13 +478,15 @@ fn run(args: RunArgs) -> Result<(), String> {
         let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
         let mut pvd = None;
         if let Some((period, path)) = &series {
-            // At most one frame a tick: T below the tick exports every tick.
-            let frames = (seconds / period.max(sim.dt)).floor() + 2.0;
-            if frames > pvd::MAX_FRAMES as f64 {
+            // Counted by the rule that writes them, so that a run that would pass the
+            // bound is refused here, not stopped at its end.
+            let interval = frame_interval(*period, sim.dt);
+            let frames = series_frames(headless::tick_count(seconds, sim.dt), interval);
+            if frames > pvd::MAX_FRAMES {
                 return Err(format!(
-                    "--export-every {}: {} frames over {} s; at most {} (raise T)",
+                    "--export-every {}: {frames} frames over {} s (one every {interval} \
+                     ticks); at most {} (raise T)",
                     readable(*period),
-                    readable(frames),
                     readable(seconds),
                     pvd::MAX_FRAMES
                 ));
@@ -457,14 +495,13 @@ fn run(args: RunArgs) -> Result<(), String> {
             series
                 .write_frame(&sim)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-            pvd = Some((series, *period, sim.time, path.clone(), None));
+            pvd = Some((series, interval, sim.tick, sim.time, path.clone(), None));
         }
         let mut frame_due = |sim: &Simulation| -> bool {
-            let Some((series, period, last, path, error)) = &mut pvd else {
+            let Some((series, interval, first, last, path, error)) = &mut pvd else {
                 return true;
             };
-            // Due when a period has passed (half a tick's slack against round-off).
-            if sim.time - *last + 0.5 * sim.dt < *period {
+            if !(sim.tick - *first).is_multiple_of(*interval) {
                 return true;
             }
             *last = sim.time;
@@ -517,7 +554,7 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.unconverged,
             summary.max_displacement * 1e3
         );
-        if let Some((mut series, _, last, path, error)) = pvd {
+        if let Some((mut series, _, _, last, path, error)) = pvd {
             if let Some(e) = error {
                 return Err(e);
             }

@@ -28,18 +28,7 @@ impl WholeFile {
     /// Starts writing `output`: refuses an output that exists and is not a regular
     /// file (`InvalidInput`, naming what it is), and creates the part file beside it.
     pub fn create(output: &Path) -> io::Result<Self> {
-        if let Ok(meta) = std::fs::symlink_metadata(output)
-            && !meta.is_file()
-        {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!(
-                    "will not write over {}: it is a {}, not a regular file",
-                    output.display(),
-                    file_kind(&meta)
-                ),
-            ));
-        }
+        writable_over(output)?;
         let part = part_path(output);
         let file = File::options().write(true).create_new(true).open(&part)?;
         Ok(WholeFile {
@@ -92,6 +81,25 @@ impl Drop for WholeFile {
         drop(self.file.take());
         let _ = std::fs::remove_file(&self.part);
     }
+}
+
+/// Refuses an output that exists and is not a regular file (`InvalidInput`, naming
+/// what it is: a directory, a symbolic link, a device…); what [`WholeFile::create`]
+/// checks first, for callers that check before a long run rather than after it.
+pub fn writable_over(output: &Path) -> io::Result<()> {
+    if let Ok(meta) = std::fs::symlink_metadata(output)
+        && !meta.is_file()
+    {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "will not write over {}: it is a {}, not a regular file",
+                output.display(),
+                file_kind(&meta)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The part file an output is written to before it is renamed over it:

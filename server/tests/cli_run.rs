@@ -397,7 +397,8 @@ fn a_scene_name_with_control_characters_is_printed_escaped() {
 
 #[test]
 fn a_tiny_series_period_is_refused_in_a_readable_message() {
-    // At 60 Hz a frame every tick over 10^4 s: 600,002 frames, refused before the run.
+    // At 60 Hz a frame every tick over 10^4 s: 600,001 frames (the start and each of
+    // 600,000 ticks), refused before the run.
     let e = fail(server().args([
         "run",
         "--seconds",
@@ -407,8 +408,146 @@ fn a_tiny_series_period_is_refused_in_a_readable_message() {
         "x.pvd",
     ]));
     assert!(
-        e.contains("--export-every 1e-300: 600002 frames over 10000 s; at most 100000"),
+        e.contains("--export-every 1e-300: 600001 frames over 10000 s (one every 1 ticks)"),
         "{e}"
     );
     assert!(e.len() < 200, "{} bytes: {e}", e.len());
+}
+
+/// The `(N frames)` of a run's `wrote OUT.pvd (N frames)` line, and the index's
+/// `DataSet` count, which must agree.
+fn frames_written(stdout: &str, pvd: &std::path::Path) -> usize {
+    let listed = std::fs::read_to_string(pvd)
+        .unwrap()
+        .matches("<DataSet")
+        .count();
+    let said = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("wrote {} (", pvd.display())))
+        .and_then(|r| r.strip_suffix(" frames)"))
+        .unwrap_or_else(|| panic!("no series line in {stdout}"));
+    assert_eq!(said.parse::<usize>().unwrap(), listed, "{stdout}");
+    listed
+}
+
+#[test]
+fn a_series_writes_the_frames_its_check_counts() {
+    // A frame every T/dt ticks, rounded: at 60 Hz T = 0.025 s is 1.5 ticks, a frame
+    // every second tick. Over 1 s (60 ticks): the start and 30 more. Over 0.35 s (21
+    // ticks): the start, 10, and the end. The check before the run counts by the same
+    // rule; it counted 42 where 47 were written when frames were due by elapsed time,
+    // so that a run it let through could stop at its end and lose its --export.
+    for (seconds, frames) in [("1", 31), ("0.35", 12)] {
+        let out = temp(&format!("counted-{seconds}.pvd"));
+        let run = succeed(
+            server()
+                .args(["run", "--seconds", seconds, "--export-every", "0.025"])
+                .arg(&out),
+        );
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        assert_eq!(frames_written(&stdout, &out), frames, "{seconds} s");
+    }
+    // One tetrahedron at 1000 Hz, T = 1.2 ticks: a frame every tick, 110,001 over
+    // 110 s, past the bound, refused at once (elapsed time counted 91,668 and let it
+    // run).
+    let dir = temp("bound");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.msh"), ONE_TET_MSH).unwrap();
+    let scene = dir.join("tet.toml");
+    std::fs::write(&scene, one_tet_scene("tet", "m.msh")).unwrap();
+    let e = fail(
+        server()
+            .args(["run", "--seconds", "110", "--export-every", "0.0012"])
+            .arg(dir.join("s.pvd"))
+            .arg("--scene")
+            .arg(&scene),
+    );
+    assert!(
+        e.contains("110001 frames over 110 s (one every 1 ticks)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_series_whose_frames_would_write_over_an_input_or_the_export_is_refused() {
+    let dir = temp("frames");
+    std::fs::create_dir_all(&dir).unwrap();
+    let traj = dir.join("ser_000001.vtu");
+    let keyframes = "0, left, 0, 0, 0.2, 0, 0, 1\n";
+    std::fs::write(&traj, keyframes).unwrap();
+    let e = fail(
+        server()
+            .args(["run", "--seconds", "0.1", "--export-every", "0.05"])
+            .arg(dir.join("ser.pvd"))
+            .arg("--trajectory")
+            .arg(&traj),
+    );
+    assert!(
+        e.contains("trajectory file") && e.contains("ser_000001.vtu"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_to_string(&traj).unwrap(), keyframes);
+    // The single export named as the series' second frame would be written over by
+    // it, or write over it: refused as well; a name outside the series is not.
+    let e = fail(
+        server()
+            .args(["run", "--seconds", "0.1", "--export-every", "0.05"])
+            .arg(dir.join("c2.pvd"))
+            .arg("--export")
+            .arg(dir.join("c2_000001.vtu")),
+    );
+    assert!(e.contains("--export") && e.contains("c2_000001.vtu"), "{e}");
+    assert!(!dir.join("c2.pvd").exists());
+    succeed(
+        server()
+            .args(["run", "--seconds", "0.1", "--export-every", "0.05"])
+            .arg(dir.join("c3.pvd"))
+            .arg("--export")
+            .arg(dir.join("c3_00001.vtu")),
+    );
+}
+
+#[test]
+fn an_export_over_a_directory_is_refused_before_the_run() {
+    let dir = temp("over-dir");
+    let target = dir.join("d.vtu");
+    std::fs::create_dir_all(&target).unwrap();
+    let out = server()
+        .args(["run", "--seconds", "0.5", "--export"])
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("it is a directory, not a regular file"), "{e}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("ran "), "refused after running: {stdout}");
+}
+
+#[test]
+fn a_static_solve_that_diverges_fails_and_exports_nothing() {
+    // E = 1 Pa, 100 t/m³, a thousand times gravity: the linear static answer puts the
+    // liver about 10⁶ m away, beyond the ±100 m a mesh must lie in. A time-stepped
+    // run stops there; the static solve did not, and wrote it out.
+    let dir = temp("static-diverged");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("soft.toml");
+    std::fs::write(
+        &scene,
+        "name = \"soft\"\ngravity = [1000.0, -1000.0, 1000.0]\n[mesh]\n\
+         file = \"builtin:liver.msh\"\nscale = 0.05\n[material]\nmodel = \"linear\"\n\
+         young_modulus = 1.0\npoisson_ratio = 0.45\ndensity = 1e5\n[fixed]\n\
+         nodes = [3, 39, 64]\n",
+    )
+    .unwrap();
+    let out = dir.join("soft.vtu");
+    let e = fail(
+        server()
+            .args(["run", "--static", "--scene"])
+            .arg(&scene)
+            .arg("--export")
+            .arg(&out),
+    );
+    assert!(e.contains("static solve") && e.contains("diverged"), "{e}");
+    assert!(!out.exists());
 }

@@ -76,6 +76,36 @@ impl PvdSeries {
         self.frames.iter().map(|(_, f)| dir.join(f)).collect()
     }
 
+    /// The file name of frame `i`, beside the index: `STEM_NNNNNN.vtu`.
+    fn frame_name(&self, i: u64) -> String {
+        format!("{}_{i:06}.vtu", self.stem)
+    }
+
+    /// Whether `path` is where this series would write one of its frames, so that a
+    /// run can refuse before it starts to write over a file it reads or another
+    /// output (directories compared as resolved; `false` if either cannot be).
+    pub fn may_write(&self, path: &Path) -> bool {
+        let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+            return false;
+        };
+        let Some(i) = name
+            .strip_prefix(self.stem.as_str())
+            .and_then(|r| r.strip_prefix('_'))
+            .and_then(|r| r.strip_suffix(".vtu"))
+            .filter(|d| d.len() == 6 && d.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|d| d.parse::<u64>().ok())
+        else {
+            return false;
+        };
+        let dir = |p: &Path| {
+            let d = p.parent().filter(|d| !d.as_os_str().is_empty());
+            std::fs::canonicalize(d.unwrap_or(Path::new(".")))
+        };
+        i < MAX_FRAMES
+            && self.frame_name(i) == name
+            && matches!((dir(&self.path), dir(path)), (Ok(a), Ok(b)) if a == b)
+    }
+
     /// Writes the simulation's current state as the next frame, at its simulated
     /// time, and adds it to the `.pvd` (created, or emptied, at the first frame).
     pub fn write_frame(&mut self, sim: &Simulation) -> io::Result<()> {
@@ -84,7 +114,7 @@ impl PvdSeries {
                 "a series holds at most {MAX_FRAMES} frames"
             )));
         }
-        let name = format!("{}_{:06}.vtu", self.stem, self.frames.len());
+        let name = self.frame_name(self.frames.len() as u64);
         let dir = self.path.parent().unwrap_or(Path::new(""));
         write_vtu(sim, &dir.join(&name))?;
         self.append_to_index(sim.time, &name)?;

@@ -85,6 +85,12 @@ pub fn run_scripted(
     run_observed(sim, seconds, script, progress, |_| true)
 }
 
+/// The ticks a run of `seconds` makes at ticks of `dt`: the nearest whole number,
+/// at least one.
+pub fn tick_count(seconds: f64, dt: f64) -> u64 {
+    (seconds / dt).round().max(1.0) as u64
+}
+
 /// As [`run_scripted`], with `after_tick` called after every tick (outside the
 /// timing, e.g. to export a frame); the run stops early when it returns false.
 pub fn run_observed(
@@ -94,7 +100,7 @@ pub fn run_observed(
     mut progress: impl FnMut(&Simulation, &StepReport),
     mut after_tick: impl FnMut(&Simulation) -> bool,
 ) -> RunSummary {
-    let ticks = (seconds / sim.dt).round().max(1.0) as u64;
+    let ticks = tick_count(seconds, sim.dt);
     // Tick times in nanoseconds to three significant digits, from 1 ns to an hour
     // (a longer tick counts as an hour), in memory that does not grow with the run.
     let mut times = Histogram::<u64>::new_with_bounds(1, 3_600_000_000_000, 3)
