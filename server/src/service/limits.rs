@@ -9,8 +9,9 @@
 use tonic::Status;
 
 /// Names and ids: `client_name`, `session_id`, instrument and scene names,
-/// recording file names. 256 bytes hold any name a person or a generator gives.
-pub const MAX_NAME_BYTES: usize = 256;
+/// recording file names. 256 bytes hold any name a person or a generator gives; a
+/// scene's name and its instruments' are held to the same when it loads.
+pub const MAX_NAME_BYTES: usize = crate::engine::scene::limits::MAX_NAME_BYTES;
 
 /// Free text a person writes: the `reason` of `CloseSession` and of a `Leave`.
 pub const MAX_REASON_BYTES: usize = 1024;

@@ -474,10 +474,12 @@ impl Session {
 }
 
 /// `<session id>-<scene>-<unix time s>.mcap`, with anything but letters, digits,
-/// `-` and `_` in the scene's name replaced by `_`.
+/// `-` and `_` in the scene's name replaced by `_`, and the scene's part cut to its
+/// first [`MAX_SCENE_IN_FILE_NAME`] characters.
 pub fn recording_file_name(id: &str, scene: &str, created_at: SystemTime) -> String {
     let scene: String = scene
         .chars()
+        .take(MAX_SCENE_IN_FILE_NAME)
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
                 c
@@ -510,6 +512,15 @@ pub fn free_recording_path(dir: &Path, id: &str, scene: &str, created_at: System
         .find(|p| !taken(p))
         .unwrap_or(first)
 }
+
+/// Most characters of the scene's name in a recording's file name (each one byte
+/// once replaced). A file name holds at most 255 bytes: a scene named with 256
+/// (the most a scene may have) made one of 275, the recorder could not create it,
+/// and the session, which had answered that it records, went on unrecorded. With
+/// 128, the id (a server's `s` and a count), the time (at most 20 digits), a `-k`
+/// suffix and the dashes and `.mcap` stay under 200. The recording holds the whole
+/// name.
+pub const MAX_SCENE_IN_FILE_NAME: usize = 128;
 
 /// Most `-k` suffixes tried for a free recording name; past it the first name is
 /// used and its creation fails as it says.

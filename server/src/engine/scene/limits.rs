@@ -60,6 +60,14 @@ pub const MIN_CG_TOLERANCE: f64 = 1e-12;
 /// Largest CG iteration cap a scene may give, whatever its mesh: 10⁵. The per-tick
 /// work bound [`MAX_TICK_WORK`] then applies to the cap times the mesh's vertices.
 pub const MAX_CG_ITERATIONS: u32 = 100_000;
+/// Longest name of a scene or of one of its instruments, bytes of UTF-8: 256, what a
+/// client may send for either ([`service::limits::MAX_NAME_BYTES`] is this), so that
+/// every scene a server lists can be asked for and every instrument claimed. A
+/// longer one loaded, was listed as available, and every `CreateSession` naming it
+/// was refused.
+///
+/// [`service::limits::MAX_NAME_BYTES`]: crate::service::limits::MAX_NAME_BYTES
+pub const MAX_NAME_BYTES: usize = 256;
 /// Largest instrument radius, m: 0.1. Laparoscopic instruments are 3–12 mm across.
 pub const MAX_INSTRUMENT_RADIUS_M: f64 = 0.1;
 /// Largest instrument length inside the body, m: 2. Instruments are 0.3–0.45 m long.

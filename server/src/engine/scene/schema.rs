@@ -404,11 +404,27 @@ impl Scene {
         }
     }
 
+    /// A name within [`MAX_NAME_BYTES`].
+    fn check_name_length(&self, path: &str, name: &str) -> Result<(), SceneError> {
+        let max = super::limits::MAX_NAME_BYTES;
+        if name.len() > max {
+            return Err(self.invalid(
+                path,
+                format!(
+                    "is {} bytes, over the limit of {max} bytes (a client could not ask for it)",
+                    name.len()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Range and consistency checks; each error names the key's path.
     fn validate(&self) -> Result<(), SceneError> {
         if self.name.trim().is_empty() {
             return Err(self.invalid("name", "must not be empty"));
         }
+        self.check_name_length("name", &self.name)?;
         self.check_positive("mesh.scale", self.mesh.scale)?;
         if self.mesh.refine > MAX_REFINE {
             return Err(self.invalid(
@@ -512,6 +528,7 @@ impl Scene {
             if ins.name.trim().is_empty() {
                 return Err(self.invalid(format!("{path}.name"), "must not be empty"));
             }
+            self.check_name_length(&format!("{path}.name"), &ins.name)?;
             if !names.insert(ins.name.as_str()) {
                 return Err(self.invalid(
                     format!("{path}.name"),

@@ -174,3 +174,24 @@ fn a_free_recording_name_counts_up_past_the_taken_ones() {
     std::fs::create_dir(free()).unwrap();
     assert_eq!(name(free()), "s1-liver_5k-1800000000-3.mcap");
 }
+
+#[test]
+fn a_scene_with_the_longest_name_records_into_a_file_the_system_creates() {
+    // A scene may be named with 256 bytes; a file name may hold 255. The scene's
+    // part is cut, so the name stays creatable with the largest id, time and suffix.
+    let dir = temp();
+    let scene = "é".repeat(128);
+    assert_eq!(scene.len(), 256);
+    let id = format!("s{}", u64::MAX);
+    let at = std::time::UNIX_EPOCH + Duration::from_secs(u64::MAX / 2);
+    let name = recording_file_name(&id, &scene, at);
+    assert!(
+        name.len() + "-1000".len() <= 255,
+        "{} bytes: {name}",
+        name.len()
+    );
+    let path = free_recording_path(dir.path(), &id, &scene, at);
+    std::fs::write(&path, b"").unwrap();
+    let taken = path.with_file_name(name.replace(".mcap", "-1000.mcap"));
+    std::fs::write(taken, b"").unwrap();
+}

@@ -293,3 +293,22 @@ fn a_point_of_other_than_three_numbers_is_refused() {
         format!("gravity = [0.0, -9.81, 0.0]\n{MINIMAL}\n{instrument}trocar = [0.0, 0.0, 0.1]\n");
     assert_eq!(parse(&good).unwrap().gravity, [0.0, -9.81, 0.0]);
 }
+
+#[test]
+fn a_name_longer_than_a_client_may_send_is_refused() {
+    // 256 bytes is what a client may send for a scene or an instrument to claim: a
+    // longer name loaded and listed as available, and could never be asked for.
+    let long = "n".repeat(MAX_NAME_BYTES + 1);
+    let named = MINIMAL.replace("name = \"t\"", &format!("name = \"{long}\""));
+    refused(build(&named), "name", "257 bytes, over the limit of 256");
+    let fits = MINIMAL.replace("name = \"t\"", &format!("name = \"{}\"", "é".repeat(128)));
+    build(&fits).unwrap();
+    let instrument = format!(
+        "{MINIMAL}[[instruments]]\nname = \"{long}\"\nradius = 0.005\nlength = 0.3\ntrocar = [0.0, 0.0, 0.1]\n"
+    );
+    refused(
+        build(&instrument),
+        "instruments[0].name",
+        "over the limit of 256",
+    );
+}
