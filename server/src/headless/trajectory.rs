@@ -3,9 +3,10 @@
 //! Format: one keyframe per line, comma-separated,
 //! `t, instrument, tip_x, tip_y, tip_z, axis_x, axis_y, axis_z` — time in s, the
 //! instrument's name as the scene declares it, tip `P` in m, axis `Z` (from the tip
-//! toward the handle; any non-zero length, normalised on reading). A first line that
-//! does not start with a number is a header; blank lines and lines starting with `#`
-//! are skipped. Keyframes of one instrument must have increasing times. A file
+//! toward the handle; any non-zero length, normalised on reading). A first line none
+//! of whose fields but the second is a number is a header (a keyframe with a typo in
+//! its time is an error naming it, not a header); blank lines and
+//! lines starting with `#` are skipped, and a leading byte-order mark is ignored. Keyframes of one instrument must have increasing times. A file
 //! names at most [`MAX_INSTRUMENTS`] instruments (as many as a scene may have) and
 //! is at most [`MAX_TRAJECTORY_BYTES`] long; it is read as scene and mesh files are
 //! ([`read_bounded`]: a regular file only, so a FIFO or a device is refused rather
@@ -23,6 +24,15 @@ use nalgebra::{Point3, Unit, Vector3};
 use crate::engine::contact::MAX_INSTRUMENTS;
 use crate::engine::contact::pose::InstrumentPose;
 use crate::engine::scene::read_bounded;
+
+/// Whether the first line's `fields` are a header: none of those a keyframe holds
+/// as numbers (all but the second, the instrument's name) is one.
+fn is_header(fields: &[&str]) -> bool {
+    fields
+        .iter()
+        .enumerate()
+        .all(|(i, f)| i == 1 || f.parse::<f64>().is_err())
+}
 
 /// Largest trajectory file read, bytes: 16 MiB, about 250,000 keyframes (a keyframe
 /// a millisecond for four instruments over a minute), held in memory as about as
@@ -84,6 +94,9 @@ impl Trajectory {
         // Track index by instrument name.
         let mut by_name: HashMap<&str, usize> = HashMap::new();
         let mut first = true;
+        // A byte-order mark (written by some spreadsheets) is not part of the first
+        // field: read as one, it made the first keyframe a header, dropped unsaid.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         for (k, raw) in text.lines().enumerate() {
             let line = k + 1;
             let row = raw.trim();
@@ -91,7 +104,7 @@ impl Trajectory {
                 continue;
             }
             let fields: Vec<&str> = row.split(',').map(str::trim).collect();
-            if first && fields[0].parse::<f64>().is_err() {
+            if first && is_header(&fields) {
                 first = false;
                 continue;
             }
@@ -317,6 +330,29 @@ mod tests {
         assert!(
             e.to_string().starts_with("t.csv:4: instrument `lift`"),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn a_byte_order_mark_or_a_typo_in_the_first_time_loses_no_keyframe_unsaid() {
+        // A byte-order mark before `0.0` made the first keyframe read as a header and
+        // dropped it; a letter O for a zero did the same.
+        let keys = "0.0, left, 0.0, 0.0, 0.055, 0, 0, 1\n1.0, left, 0.0, 0.0, 0.09, 0, 0, 1\n";
+        let plain = Trajectory::parse(keys, "t.csv").unwrap();
+        let marked = Trajectory::parse(&format!("\u{feff}{keys}"), "t.csv").unwrap();
+        assert_eq!(marked.tracks[0].keys.len(), 2);
+        assert_eq!(marked.tracks[0].keys, plain.tracks[0].keys);
+        let typo = keys.replacen("0.0", "O.0", 1);
+        let e = Trajectory::parse(&typo, "t.csv").unwrap_err();
+        assert_eq!(e.line, 1, "{e}");
+        assert!(e.message.contains("field 1 `O.0` is not a number"), "{e}");
+        // A header still is one, marked or not.
+        let header = format!("\u{feff}t, instrument, x, y, z, ax, ay, az\n{keys}");
+        assert_eq!(
+            Trajectory::parse(&header, "t.csv").unwrap().tracks[0]
+                .keys
+                .len(),
+            2
         );
     }
 
