@@ -75,6 +75,10 @@ pub struct Listed {
     pub entry: Result<Listing, ReadError>,
     /// Bytes this listing read of the file (0 when its answer was cached).
     pub bytes_read: u64,
+    /// Whether this listing read the file (new or changed since the last), rather
+    /// than answering from the cache: what a caller says of a file it cannot list,
+    /// it says once a version.
+    pub fresh: bool,
 }
 
 /// What a file was found to hold; its state but for whether a session writes it.
@@ -230,12 +234,13 @@ impl Lister {
         let mut out = Vec::new();
         for (file, path, metadata) in candidates {
             let mut version = Version::of(&metadata);
-            let mut bytes_read = 0;
+            let (mut bytes_read, mut fresh) = (0, false);
             let mut read = |version: Version| match cache.get(&file) {
                 Some((v, found)) if *v == version => found.clone(),
                 _ => {
                     let (found, n) = find(&path, &file);
                     bytes_read += n;
+                    fresh = true;
                     cache.insert(file.clone(), (version, found.clone()));
                     found
                 }
@@ -264,6 +269,7 @@ impl Lister {
                 size_bytes: version.size,
                 entry,
                 bytes_read,
+                fresh,
             });
         }
         // Files gone from the directory are forgotten.

@@ -280,17 +280,23 @@ impl v1::recordings_server::Recordings for RecordingsService {
         .await?;
         let (listed, left_out) = listed;
         let mut recordings = Vec::new();
+        // What cannot be listed is logged once a version of the file, not at every
+        // listing: the console lists every 2 s, so each bad file otherwise wrote a
+        // line every 2 s for each page open.
         for l in listed {
             if l.file.chars().any(needs_escape) {
                 // Not a name the server writes, nor one `Replay` takes.
-                tracing::warn!(file = %printable(&l.file), "not listed: its name holds control characters");
+                if l.fresh {
+                    tracing::warn!(file = %printable(&l.file), "not listed: its name holds control characters");
+                }
                 continue;
             }
             match &l.entry {
                 Ok(e) => recordings.push(info(l.file, l.size_bytes, e)),
-                Err(e) => {
-                    tracing::warn!(file = %l.file, "not listed: {}", printable(&e.to_string()))
+                Err(e) if l.fresh => {
+                    tracing::warn!(file = %printable(&l.file), "not listed: {}", printable(&e.to_string()))
                 }
+                Err(_) => {}
             }
         }
         Ok(Response::new(v1::ListRecordingsResponse {

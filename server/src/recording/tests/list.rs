@@ -102,3 +102,24 @@ fn a_directory_of_many_files_lists_only_the_most_recently_modified() {
     let (listed, left_out) = lister.list_at_most(d, 5, |_| false).unwrap();
     assert_eq!((listed.len(), left_out), (5, 0));
 }
+
+#[test]
+fn a_file_is_read_afresh_only_when_new_or_changed() {
+    // What a listing says of a file it cannot list (a server logs it) is said once a
+    // version: the console lists every 2 s.
+    let dir = temp();
+    let d = dir.path();
+    let bad = d.join("notes.mcap");
+    std::fs::write(&bad, b"not a recording").unwrap();
+    let lister = Lister::new();
+    let fresh = |lister: &Lister| {
+        let (listed, _) = lister.list_at_most(d, 10, |_| false).unwrap();
+        assert!(listed[0].entry.is_err());
+        listed[0].fresh
+    };
+    assert!(fresh(&lister), "new");
+    assert!(!fresh(&lister), "unchanged");
+    std::fs::write(&bad, b"still not a recording").unwrap();
+    assert!(fresh(&lister), "changed");
+    assert!(!fresh(&lister), "unchanged again");
+}
