@@ -217,11 +217,18 @@ impl Trajectory {
                 return Err(TrajectoryError {
                     source_name: source_name.to_string(),
                     line: track.line,
-                    message: format!(
-                        "instrument `{}` is not in the scene (it has: {})",
-                        track.instrument,
-                        names.join(", ")
-                    ),
+                    message: if names.is_empty() {
+                        format!(
+                            "instrument `{}` is not in the scene (it has none)",
+                            track.instrument
+                        )
+                    } else {
+                        format!(
+                            "instrument `{}` is not in the scene (it has: {})",
+                            track.instrument,
+                            names.join(", ")
+                        )
+                    },
                 });
             }
         }
@@ -329,6 +336,15 @@ mod tests {
         assert_eq!(e.line, 4, "{e}");
         assert!(
             e.to_string().starts_with("t.csv:4: instrument `lift`"),
+            "{e}"
+        );
+        // A scene with no instruments says so, not "(it has: )".
+        let e = Trajectory::parse(text, "t.csv")
+            .unwrap()
+            .match_instruments(&[], "t.csv")
+            .unwrap_err();
+        assert!(
+            e.message.ends_with("is not in the scene (it has none)"),
             "{e}"
         );
     }

@@ -11,7 +11,13 @@ pub enum SceneError {
     #[error("{scene}: {message}")]
     Io { scene: String, message: String },
     /// TOML syntax, an unknown key, or a value of the wrong type.
-    #[error("{scene}:{line}: `{path}`: {message}", line = line.map_or(String::from("?"), |l| l.to_string()))]
+    /// `path` is empty when the fault is not under a key (a key written twice, a
+    /// field missing at the top level): then it is not printed.
+    #[error(
+        "{scene}:{line}: {at}{message}",
+        line = line.map_or(String::from("?"), |l| l.to_string()),
+        at = if path.is_empty() { String::new() } else { format!("`{path}`: ") }
+    )]
     Parse {
         scene: String,
         path: String,

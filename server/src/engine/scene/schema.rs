@@ -348,7 +348,18 @@ impl Scene {
                 .map(|s| 1 + text[..s.start.min(text.len())].matches('\n').count()),
             message: err.message().to_string(),
         };
-        let de = toml::Deserializer::parse(text).map_err(|e| parse_error(String::new(), &e))?;
+        // A syntax error has no key path; the text it points at names the key (a key
+        // written twice) when that is short and on one line.
+        let spanned = |err: &toml::de::Error| {
+            err.span()
+                .and_then(|s| text.get(s))
+                .map(str::trim)
+                .filter(|t| !t.is_empty() && t.len() <= 64 && !t.contains('\n'))
+                .map_or_else(String::new, |t| {
+                    laparo_proto::text::printable(t).to_string()
+                })
+        };
+        let de = toml::Deserializer::parse(text).map_err(|e| parse_error(spanned(&e), &e))?;
         let mut scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
             let path = e.path().to_string();
             parse_error(if path == "." { String::new() } else { path }, e.inner())

@@ -64,6 +64,17 @@ fn wrong_types_name_the_key_and_line() {
 }
 
 #[test]
+fn a_syntax_error_names_the_text_it_points_at_and_no_empty_key() {
+    // A key written twice: the error has no key path, and named none ("``").
+    let twice = format!("{MINIMAL}\n[fixed]\nnodes = [1]\n");
+    let e = parse(&twice).unwrap_err().to_string();
+    assert!(e.contains(": `fixed`: duplicate key"), "{e}");
+    let e = parse("").unwrap_err().to_string();
+    assert!(e.starts_with("test.toml:1: missing field `name`"), "{e}");
+    assert!(!e.contains("``"), "{e}");
+}
+
+#[test]
 fn out_of_range_values_are_named_with_their_path() {
     let cases = [
         (
