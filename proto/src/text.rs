@@ -7,6 +7,9 @@
 //! OSC sequences ending in BEL), and a bidirectional override can make the text read
 //! as something else than it is. [`printable`] replaces each of those characters by
 //! its escape, so the text shows what it holds and does nothing to the terminal.
+//!
+//! Numbers a client sends are echoed in the statuses that refuse them; [`Number`]
+//! keeps such an echo short whatever the number (`1e300`, not 301 digits).
 
 use std::borrow::Cow;
 
@@ -36,6 +39,26 @@ pub fn printable(text: &str) -> Cow<'_, str> {
         }
     }
     Cow::Owned(out)
+}
+
+/// An `f64` written in its shortest form that reads back as the same number, in
+/// decimal notation (`0.25`, `1500`) within `[1e-5, 1e16)` in magnitude and for
+/// zero, in scientific notation (`1e300`, `-2.5e-7`) outside it, `NaN` and `inf` as
+/// Rust writes them. Plain `{}` writes `1e300` as 301 digits and `1e-300` with 300
+/// zeros; this is never longer than 24 characters (`-2.2250738585072014e-308`).
+#[derive(Clone, Copy, Debug)]
+pub struct Number(pub f64);
+
+impl std::fmt::Display for Number {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let x = self.0;
+        let magnitude = x.abs();
+        if x == 0.0 || !x.is_finite() || (1e-5..1e16).contains(&magnitude) {
+            write!(f, "{x}")
+        } else {
+            write!(f, "{x:e}")
+        }
+    }
 }
 
 #[cfg(test)]

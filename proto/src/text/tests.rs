@@ -2,7 +2,7 @@ use std::borrow::Cow;
 
 use proptest::prelude::*;
 
-use super::{needs_escape, printable};
+use super::{Number, needs_escape, printable};
 
 #[test]
 fn plain_text_of_any_script_is_borrowed_as_it_is() {
@@ -48,5 +48,42 @@ proptest! {
         } else {
             prop_assert!(out.len() > s.len());
         }
+    }
+}
+
+#[test]
+fn numbers_are_written_plainly_in_range_and_short_outside_it() {
+    let cases = [
+        (0.0, "0"),
+        (-0.0, "-0"),
+        (1.5, "1.5"),
+        (604_800.0, "604800"),
+        (3.999_999_999_999_990_7, "3.9999999999999907"),
+        (1e-5, "0.00001"),
+        (9.9e-6, "9.9e-6"),
+        (1e16, "1e16"),
+        (1e300, "1e300"),
+        (-1e-300, "-1e-300"),
+        (f64::MAX, "1.7976931348623157e308"),
+        (f64::INFINITY, "inf"),
+        (f64::NEG_INFINITY, "-inf"),
+        (f64::NAN, "NaN"),
+    ];
+    for (x, shown) in cases {
+        assert_eq!(Number(x).to_string(), shown, "{x:?}");
+    }
+}
+
+proptest! {
+    /// Any `f64` is written in at most 24 characters that read back as itself.
+    #[test]
+    fn a_number_reads_back_as_itself_in_at_most_24_characters(
+        bits in prop_oneof![any::<u64>(), (-1e17..1e17f64).prop_map(f64::to_bits)]
+    ) {
+        let x = f64::from_bits(bits);
+        let shown = Number(x).to_string();
+        prop_assert!(shown.len() <= 24, "{shown}");
+        let back: f64 = shown.parse().unwrap();
+        prop_assert!(back.to_bits() == bits || (x.is_nan() && back.is_nan()), "{shown}");
     }
 }

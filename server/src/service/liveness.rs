@@ -25,6 +25,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::task::{Context, Poll};
 use std::time::{Duration, Instant};
 
+use laparo_proto::text::Number;
 use tokio::sync::{mpsc, oneshot};
 use tokio_stream::Stream;
 use tokio_stream::wrappers::ReceiverStream;
@@ -52,7 +53,8 @@ impl StationTimeout {
             Ok(StationTimeout(Duration::from_secs_f64(seconds)))
         } else {
             Err(format!(
-                "{seconds} s is outside [{}, {}] s",
+                "{} s is outside [{}, {}] s",
+                Number(seconds),
                 Self::RANGE_S.start(),
                 Self::RANGE_S.end()
             ))
@@ -248,6 +250,8 @@ mod tests {
             let e = StationTimeout::from_secs(bad).unwrap_err();
             assert!(e.contains("[0.5, 3600] s"), "{bad}: {e}");
         }
+        let e = StationTimeout::from_secs(1e20).unwrap_err();
+        assert!(e.starts_with("1e20 s is outside"), "{e}");
     }
 
     #[test]

@@ -43,7 +43,7 @@ use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, UNIX_EPOCH};
 
-use laparo_proto::text::{needs_escape, printable};
+use laparo_proto::text::{Number, needs_escape, printable};
 use laparo_proto::v1;
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
@@ -104,7 +104,8 @@ pub fn speed(asked: Option<f64>) -> Result<f64, Status> {
         Some(s) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Ok(s),
         Some(s) => Err(Status::invalid_argument(format!(
             "the replay speed must be a finite factor from {MIN_SPEED} to {MAX_SPEED} \
-             (got {s})"
+             (got {})",
+            Number(s)
         ))),
     }
 }
@@ -116,7 +117,8 @@ pub fn start_offset(asked: Option<f64>) -> Result<f64, Status> {
         None => Ok(0.0),
         Some(t) if t.is_finite() && t >= 0.0 => Ok(t),
         Some(t) => Err(Status::invalid_argument(format!(
-            "the start offset must be finite and ≥ 0 s (got {t})"
+            "the start offset must be finite and ≥ 0 s (got {})",
+            Number(t)
         ))),
     }
 }
@@ -246,8 +248,9 @@ fn open_for_replay(
     let duration = recording.duration_s().map_err(status)?;
     if offset > duration {
         return Err(Status::out_of_range(format!(
-            "the start offset {offset} s is past the end of `{name}`, which lasts \
-             {duration} s"
+            "the start offset {} s is past the end of `{name}`, which lasts {} s",
+            Number(offset),
+            Number(duration)
         )));
     }
     let scene = recording.scene().map_err(status)?;
@@ -408,11 +411,16 @@ mod tests {
         ] {
             assert_eq!(speed(Some(bad)).unwrap_err().code(), Code::InvalidArgument);
         }
+        // A number far out of range is echoed short, not in its 301 digits.
+        let status = speed(Some(1e300)).unwrap_err();
+        assert!(status.message().ends_with("(got 1e300)"), "{status:?}");
         assert_eq!(start_offset(None).unwrap(), 0.0);
         assert_eq!(start_offset(Some(2.5)).unwrap(), 2.5);
         for bad in [-1e-9, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
             assert!(start_offset(Some(bad)).is_err());
         }
+        let status = start_offset(Some(-1e300)).unwrap_err();
+        assert!(status.message().ends_with("(got -1e300)"), "{status:?}");
         assert_eq!(
             Playback::from_request(v1::ReplayMode::Unspecified as i32).unwrap(),
             Playback::Recorded

@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use laparo_proto::text::Number;
 use laparo_proto::v1;
 use tokio::sync::{broadcast, mpsc, watch};
 use tonic::Status;
@@ -64,7 +65,8 @@ pub fn frame_rate(asked: Option<f64>, mechanics_hz: f64) -> Result<f64, Status> 
         None => Ok(mechanics_hz),
         Some(r) if r.is_finite() && r > 0.0 => Ok(r.min(mechanics_hz)),
         Some(r) => Err(Status::invalid_argument(format!(
-            "the frame rate must be finite and > 0 Hz (got {r})"
+            "the frame rate must be finite and > 0 Hz (got {})",
+            Number(r)
         ))),
     }
 }
@@ -181,5 +183,27 @@ async fn send_unless_done<M>(
         biased;
         sent = tx.send(message) => sent.is_ok(),
         _ = done.wait_for(|d| *d) => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use tonic::Code;
+
+    use super::frame_rate;
+
+    #[test]
+    fn a_frame_rate_is_at_most_the_mechanics_rate_and_a_bad_one_is_echoed_short() {
+        assert_eq!(frame_rate(None, 60.0).unwrap(), 60.0);
+        assert_eq!(frame_rate(Some(30.0), 60.0).unwrap(), 30.0);
+        assert_eq!(frame_rate(Some(1e300), 60.0).unwrap(), 60.0);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(
+                frame_rate(Some(bad), 60.0).unwrap_err().code(),
+                Code::InvalidArgument
+            );
+        }
+        let status = frame_rate(Some(-1e300), 60.0).unwrap_err();
+        assert!(status.message().ends_with("(got -1e300)"), "{status:?}");
     }
 }

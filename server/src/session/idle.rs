@@ -2,6 +2,8 @@
 
 use std::time::Duration;
 
+use laparo_proto::text::Number;
+
 /// Longest idle timeout, s: 7 days. A session nobody has joined for a week is
 /// forgotten, and 0 already means "never". The bound also keeps the duration far from
 /// what `Duration` and `Instant` arithmetic can hold (about 1.8·10¹⁹ s), where
@@ -18,7 +20,8 @@ pub fn idle_timeout(seconds: f64) -> Result<Option<Duration>, String> {
         Ok(Some(Duration::from_secs_f64(seconds)))
     } else {
         Err(format!(
-            "{seconds} s is outside [0, {MAX_IDLE_TIMEOUT_S}] s (0: never; at most 7 days)"
+            "{} s is outside [0, {MAX_IDLE_TIMEOUT_S}] s (0: never; at most 7 days)",
+            Number(seconds)
         ))
     }
 }
@@ -48,5 +51,8 @@ mod tests {
             let message = idle_timeout(bad).unwrap_err();
             assert!(message.contains("[0, 604800] s"), "{bad}: {message}");
         }
+        // Echoed in its short form (`1e300`, not 301 digits).
+        let message = idle_timeout(1e300).unwrap_err();
+        assert!(message.starts_with("1e300 s is outside"), "{message}");
     }
 }
