@@ -20,6 +20,7 @@ pub fn read_status(name: &str, e: &ReadError) -> Status {
         | ReadError::NotMcap { .. }
         | ReadError::Truncated { .. }
         | ReadError::NotARecording { .. }
+        | ReadError::CutBeforeDescription { .. }
         | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(text()),
     }
 }

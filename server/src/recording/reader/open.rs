@@ -175,6 +175,9 @@ impl Recording {
         let mut opened = 0;
         let mut at = MAGIC.len() as u64;
         let mut walked = 0u64;
+        // Whether the walk reached the data section's end rather than a record cut
+        // short or damaged.
+        let mut ended = false;
         while let Ok(Some(framed)) = frame_at(&source, at, len) {
             walked += 1;
             if walked > MAX_WALKED_RECORDS {
@@ -221,12 +224,18 @@ impl Recording {
                     Ok(r) => add(&mut schemas, &mut channels, r),
                     Err(_) => break,
                 },
-                op::DATA_END | op::FOOTER => break,
+                op::DATA_END | op::FOOTER => {
+                    ended = true;
+                    break;
+                }
                 _ => {}
             }
             at = framed.end();
         }
         let Some(metadata) = metadata else {
+            if !ended {
+                return Err(ReadError::CutBeforeDescription { file, end: at });
+            }
             return Err(ReadError::NotARecording {
                 file,
                 message: format!(

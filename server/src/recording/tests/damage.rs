@@ -329,3 +329,45 @@ fn a_damaged_metadata_record_is_named_by_its_offset_in_the_file() {
     assert!(err.contains(&format!("byte {at}")), "{err}");
     assert!(!err.contains("byte 0"), "{err}");
 }
+
+#[test]
+fn a_file_cut_before_its_description_says_so_and_one_cut_after_reads() {
+    let dir = temp();
+    let full = dir.path().join("full.mcap");
+    let (boundaries, bytes) = chunked(&full, 8, 4);
+    let metadata = Recording::open(&full)
+        .unwrap()
+        .mcap_summary()
+        .metadata_indexes
+        .iter()
+        .find(|m| m.name == "laparo.scene")
+        .expect("the recording's description")
+        .clone();
+    // The scene's chunk comes first, then the description, then the first flush.
+    let (start, end) = (metadata.offset, metadata.offset + metadata.length);
+    assert!(16 < start && end <= boundaries[0].0, "{start}..{end}");
+    for cut in [8, 9, 16, start / 2, start - 1, start, start + 1, end - 1] {
+        let err =
+            Recording::from_unfinished_bytes(format!("cut-{cut}"), bytes[..cut as usize].to_vec())
+                .map(|_| ())
+                .unwrap_err();
+        assert!(
+            matches!(err, ReadError::CutBeforeDescription { .. }),
+            "cut at {cut}: {err}"
+        );
+        assert!(err.to_string().contains("cut short"), "{err}");
+        // Recovering it has nothing to keep.
+        let path = dir.path().join(format!("cut-{cut}.mcap"));
+        std::fs::write(&path, &bytes[..cut as usize]).unwrap();
+        assert!(matches!(
+            recover(&path, &dir.path().join("x.mcap")),
+            Err(RecoverError::NothingToRecover { .. })
+        ));
+    }
+    for cut in [end, boundaries[0].0] {
+        let rec =
+            Recording::from_unfinished_bytes(format!("cut-{cut}"), bytes[..cut as usize].to_vec())
+                .unwrap();
+        assert_eq!(rec.meta().session_id, "s7");
+    }
+}
