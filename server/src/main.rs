@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
@@ -355,6 +356,20 @@ fn series_frames(ticks: u64, interval: u64) -> u64 {
     1 + ticks / interval + u64::from(!ticks.is_multiple_of(interval))
 }
 
+/// A time series being written by `run --export-every`.
+struct Series {
+    frames: PvdSeries,
+    /// Ticks from one frame to the next ([`frame_interval`]).
+    interval: u64,
+    /// The tick of the first frame.
+    first: u64,
+    /// Simulated time of the newest frame, s.
+    last: f64,
+    path: PathBuf,
+    /// Why a frame could not be written (the run stops there).
+    error: Option<String>,
+}
+
 fn run(args: RunArgs) -> Result<(), String> {
     let series = args.export_every.as_deref().map(export_every).transpose()?;
     let mut outputs = Vec::new();
@@ -446,6 +461,15 @@ fn run(args: RunArgs) -> Result<(), String> {
             sim.integrator.explicit_substeps(sim.dt)
         );
     }
+    // From here on Ctrl-C ends the run cleanly (see `headless::signal`).
+    let stop = headless::signal::stop_flag();
+    sim.integrator.set_interrupt(stop.clone());
+    let interrupted = |at: &Simulation, what: &str| {
+        format!(
+            "interrupted at tick {} (t = {:.3} s){what}; --export not written",
+            at.tick, at.time
+        )
+    };
     if args.static_solve {
         if !sim.supports_hold_rigid_motion() {
             return Err(format!(
@@ -455,6 +479,9 @@ fn run(args: RunArgs) -> Result<(), String> {
         }
         let start = Instant::now();
         let report = sim.solve_static();
+        if stop.load(Ordering::Relaxed) {
+            return Err(interrupted(&sim, " during the static solve"));
+        }
         println!(
             "static: {} CG iterations, relative residual {:.1e}{}, {:.1} ms; largest displacement {:.3} mm",
             report.cg_iterations,
@@ -476,7 +503,7 @@ fn run(args: RunArgs) -> Result<(), String> {
         }
     } else {
         let script = script.as_ref().map(|(t, m)| (t, m.as_slice()));
-        let mut pvd = None;
+        let mut pvd: Option<Series> = None;
         if let Some((period, path)) = &series {
             // Counted by the rule that writes them, so that a run that would pass the
             // bound is refused here, not stopped at its end.
@@ -495,20 +522,31 @@ fn run(args: RunArgs) -> Result<(), String> {
             series
                 .write_frame(&sim)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-            pvd = Some((series, interval, sim.tick, sim.time, path.clone(), None));
+            pvd = Some(Series {
+                frames: series,
+                interval,
+                first: sim.tick,
+                last: sim.time,
+                path: path.clone(),
+                error: None,
+            });
         }
         let mut frame_due = |sim: &Simulation| -> bool {
-            let Some((series, interval, first, last, path, error)) = &mut pvd else {
+            // A tick a signal cut short is no frame.
+            if stop.load(Ordering::Relaxed) {
+                return false;
+            }
+            let Some(s) = &mut pvd else {
                 return true;
             };
-            if !(sim.tick - *first).is_multiple_of(*interval) {
+            if !(sim.tick - s.first).is_multiple_of(s.interval) {
                 return true;
             }
-            *last = sim.time;
-            match series.write_frame(sim) {
+            s.last = sim.time;
+            match s.frames.write_frame(sim) {
                 Ok(()) => true,
                 Err(e) => {
-                    *error = Some(format!("cannot write {}: {e}", path.display()));
+                    s.error = Some(format!("cannot write {}: {e}", s.path.display()));
                     false
                 }
             }
@@ -554,17 +592,27 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.unconverged,
             summary.max_displacement * 1e3
         );
-        if let Some((mut series, _, _, last, path, error)) = pvd {
-            if let Some(e) = error {
+        if stop.load(Ordering::Relaxed) {
+            let kept = pvd.as_ref().map_or(String::new(), |s| {
+                format!(
+                    "; {} holds the {} frames written before it",
+                    s.path.display(),
+                    s.frames.len()
+                )
+            });
+            return Err(interrupted(&sim, &kept));
+        }
+        if let Some(mut s) = pvd {
+            if let Some(e) = s.error {
                 return Err(e);
             }
             // A diverged state is not a frame: the series ends with the last good one.
-            if last < sim.time && summary.fault.is_none() {
-                series
+            if s.last < sim.time && summary.fault.is_none() {
+                s.frames
                     .write_frame(&sim)
-                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                    .map_err(|e| format!("cannot write {}: {e}", s.path.display()))?;
             }
-            println!("wrote {} ({} frames)", path.display(), series.len());
+            println!("wrote {} ({} frames)", s.path.display(), s.frames.len());
         }
         if let Some(fault) = summary.fault {
             return Err(format!(

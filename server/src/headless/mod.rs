@@ -1,5 +1,6 @@
 //! Stepping a scene with no network: `laparo-server run`.
 
+pub mod signal;
 pub mod trajectory;
 
 use std::time::{Duration, Instant};
@@ -43,7 +44,8 @@ pub struct RunSummary {
 
 /// What is wrong with `sim` after a tick, if anything, by the rule a served session
 /// halts on (`session/halt.rs`): a vertex position [`out_of_place`] (not finite or
-/// beyond ±[`MAX_COORDINATE_M`]), or an instrument's reaction that is not finite. A pass over the positions, nothing allocated unless there is a fault.
+/// beyond ±[`MAX_COORDINATE_M`]), or an instrument's reaction that is not finite.
+/// A pass over the positions, nothing allocated unless there is a fault.
 pub fn fault(sim: &Simulation) -> Option<String> {
     if let Some((v, x)) = sim
         .state
