@@ -92,7 +92,8 @@ impl PvdSeries {
             .strip_prefix(self.stem.as_str())
             .and_then(|r| r.strip_prefix('_'))
             .and_then(|r| r.strip_suffix(".vtu"))
-            .filter(|d| d.len() == 6 && d.bytes().all(|b| b.is_ascii_digit()))
+            // Parsed loosely (`+1` reads as 1): rebuilding the name below refuses any
+            // form but the six digits a frame is written with.
             .and_then(|d| d.parse::<u64>().ok())
         else {
             return false;

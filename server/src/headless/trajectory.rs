@@ -5,10 +5,11 @@
 //! instrument's name as the scene declares it, tip `P` in m, axis `Z` (from the tip
 //! toward the handle; any non-zero length, normalised on reading). A first line none
 //! of whose fields but the second is a number is a header (a keyframe with a typo in
-//! its time is an error naming it, not a header); blank lines and
-//! lines starting with `#` are skipped, and a leading byte-order mark is ignored. Keyframes of one instrument must have increasing times. A file
-//! names at most [`MAX_INSTRUMENTS`] instruments (as many as a scene may have) and
-//! is at most [`MAX_TRAJECTORY_BYTES`] long; it is read as scene and mesh files are
+//! its time is an error naming it, not a header); blank lines and lines starting
+//! with `#` are skipped, and a leading byte-order mark is ignored. Keyframes of one
+//! instrument must have increasing times. A file names at most [`MAX_INSTRUMENTS`]
+//! instruments (as many as a scene may have) and is at most
+//! [`MAX_TRAJECTORY_BYTES`] long; it is read as scene and mesh files are
 //! ([`read_bounded`]: a regular file only, so a FIFO or a device is refused rather
 //! than read for ever).
 //!

@@ -17,12 +17,12 @@
 //! `‖(M g − K̂ u − o)_f‖`, with the rotations of the current `x`, meets the same
 //! tolerance as the linear solve, or after [`MAX_ROTATION_UPDATES`], or when the CG
 //! iterations of all its linear solves together reach the tick-work bound's cap for
-//! the mesh ([`max_cg_iterations`](crate::engine::scene::limits::max_cg_iterations): the scene's `cg_max_iterations` bounds each
+//! the mesh ([`max_cg_iterations`]: the scene's `cg_max_iterations` bounds each
 //! solve, and a thousand solves at that cap would have been a thousand times the
 //! bound; liver-5k at E = 1 Pa under 1000 g ran one static tick of 141,153
-//! iterations, 74 s). Each tick of the
-//! static integrator starts from the last equilibrium, so a tick whose loads have not
-//! changed costs one rotation update and no CG iteration. Each linear solve stops at
+//! iterations, 74 s). Each tick of the static integrator starts from the last
+//! equilibrium, so a tick whose loads have not changed costs one rotation update
+//! and no CG iteration. Each linear solve stops at
 //! a tenth of the current nonlinear residual (or the tolerance, when tighter): an
 //! inexact fixed-point iteration, since solving exactly for rotations about to
 //! change buys nothing.
@@ -39,6 +39,7 @@
 //! 600 Pa took 47 and 84 updates without and 52 and 86 with, liver-5k at 1 kPa 41
 //! and 32, SOFA's liver demo 18 either way.
 //!
+//! [`max_cg_iterations`]: crate::engine::scene::limits::max_cg_iterations
 //! [`twist_tangent`]: crate::engine::elastic::twist_tangent
 
 use nalgebra::Vector3;
@@ -143,6 +144,8 @@ pub(super) fn solve(
             }
             None => (&model.stiffness, None),
         };
+        // Checked after the rotation update, not before it: the report then holds
+        // the nonlinear residual of the state the solve returns.
         if it.interrupt.is_raised() || inner.max_iterations == 0 {
             break;
         }

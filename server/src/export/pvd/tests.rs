@@ -123,3 +123,31 @@ fn the_bytes_a_frame_writes_to_the_index_do_not_grow_with_the_frame_count() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn a_series_may_write_exactly_its_six_digit_frames_beside_it() {
+    let dir = temp_dir("may-write");
+    let series = PvdSeries::new(&dir.join("s.pvd"));
+    for ok in ["s_000000.vtu", "s_000001.vtu", "s_099999.vtu"] {
+        assert!(series.may_write(&dir.join(ok)), "{ok}");
+    }
+    for other in [
+        "s_00001.vtu",
+        "s_0000001.vtu",
+        "s_+00001.vtu",
+        "s_-00001.vtu",
+        "s_ 00001.vtu",
+        "s_100000.vtu",
+        "s_000001.vtk",
+        "t_000001.vtu",
+        "s000001.vtu",
+        "s.pvd",
+    ] {
+        assert!(!series.may_write(&dir.join(other)), "{other}");
+    }
+    // The same name in another folder is another file.
+    let elsewhere = temp_dir("may-write-elsewhere");
+    assert!(!series.may_write(&elsewhere.join("s_000001.vtu")));
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::remove_dir_all(&elsewhere).unwrap();
+}
