@@ -3,13 +3,14 @@
 //! `laparo-server` (no subcommand) serves the gRPC contract; `laparo-server run` steps
 //! a scene headless (no network) and can export the result for ParaView.
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use laparo_proto::text::printable;
+use laparo_proto::text::{Number, printable};
 use laparo_server::engine::integrate::IntegratorKind;
 use laparo_server::engine::scene::{Scene, same_file};
 use laparo_server::engine::simulation::{Simulation, mesh_path};
@@ -254,7 +255,7 @@ struct RunArgs {
     /// Write a time series for ParaView: a frame every T simulated seconds (and the
     /// start and the end), as OUT_000000.vtu, ... beside OUT.pvd, which lists them.
     #[arg(long, num_args = 2, value_names = ["T", "OUT.pvd"], conflicts_with = "static_solve")]
-    export_every: Option<Vec<String>>,
+    export_every: Option<Vec<OsString>>,
 }
 
 fn positive_rate(s: &str) -> Result<f64, String> {
@@ -298,21 +299,27 @@ fn main() -> ExitCode {
     }
 }
 
-/// `x` as a person reads it: plain decimals from 1e-4 to below 1e9, scientific
-/// notation beyond (`{}` would write 1e-300 with 300 digits).
-fn readable(x: f64) -> String {
-    if x == 0.0 || (1e-4..1e9).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
-}
-
 /// The period and path of `--export-every T OUT.pvd`, checked.
-fn export_every(values: &[String]) -> Result<(f64, PathBuf), String> {
+/// Taken as raw arguments, so that bytes that are not UTF-8 get this message rather
+/// than the parser's. The series' name must be text: its frames are named after it,
+/// in an XML index.
+fn export_every(values: &[OsString]) -> Result<(f64, PathBuf), String> {
     let [period, path] = values else {
         return Err("--export-every takes a period in seconds and a .pvd path".into());
     };
+    let Some(period) = period.to_str() else {
+        return Err(format!(
+            "--export-every {}: the period is not a number of seconds",
+            period.to_string_lossy()
+        ));
+    };
+    if path.to_str().is_none() {
+        return Err(format!(
+            "--export-every {period} {}: the series' path must be UTF-8 text (its frames \
+             are named after it in the .pvd, an XML file)",
+            path.to_string_lossy()
+        ));
+    }
     let seconds = positive_seconds(period).map_err(|e| format!("--export-every {period}: {e}"))?;
     Ok((seconds, PathBuf::from(path)))
 }
@@ -513,8 +520,8 @@ fn run(args: RunArgs) -> Result<(), String> {
                 return Err(format!(
                     "--export-every {}: {frames} frames over {} s (one every {interval} \
                      ticks); at most {} (raise T)",
-                    readable(*period),
-                    readable(seconds),
+                    Number(*period),
+                    Number(seconds),
                     pvd::MAX_FRAMES
                 ));
             }

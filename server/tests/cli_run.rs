@@ -259,6 +259,29 @@ fn a_bad_series_period_or_folder_fails_with_a_message() {
         ]))
         .contains("/no/such/dir/s")
     );
+    // Bytes that are not UTF-8: in the period, and in the series' name (its frames
+    // are named after it in an XML index), each named in the message.
+    use std::os::unix::ffi::OsStrExt;
+    let bad = std::ffi::OsStr::from_bytes(b"\xff1.pvd");
+    let said = fail(
+        server()
+            .args(["run", "--seconds", "0.1", "--export-every", "0.05"])
+            .arg(bad),
+    );
+    assert!(
+        said.contains("\u{fffd}1.pvd: the series' path must be UTF-8"),
+        "{said}"
+    );
+    let said = fail(
+        server()
+            .args(["run", "--seconds", "0.1", "--export-every"])
+            .arg(std::ffi::OsStr::from_bytes(b"0.\xff"))
+            .arg("x.pvd"),
+    );
+    assert!(
+        said.contains("the period is not a number of seconds"),
+        "{said}"
+    );
     // A single export into a folder that is not there is refused before the run
     // steps, not after it has run for nothing.
     let said = fail(server().args(["run", "--seconds", "0.5", "--export", "/no/such/dir/x.vtu"]));
