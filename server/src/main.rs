@@ -493,12 +493,10 @@ fn run(args: RunArgs) -> Result<(), String> {
             "static: {} CG iterations, relative residual {:.1e}{}, {:.1} ms; largest displacement {:.3} mm",
             report.cg_iterations,
             report.relative_residual,
-            if report.converged {
-                ""
-            } else {
-                " (NOT converged: a linear solve reached mechanics.cg_max_iterations, or the \
-                 solve its budget of iterations for the mesh or its 1000 rotation updates; \
-                 the state is the last iterate)"
+            match report.stopped_by {
+                Some(why) if !report.converged =>
+                    format!(" (NOT converged: {why}; the state is the last iterate)"),
+                _ => String::new(),
             },
             start.elapsed().as_secs_f64() * 1e3,
             sim.max_displacement() * 1e3,

@@ -98,5 +98,6 @@ pub(super) fn step(
         cg_iterations: 0,
         relative_residual: 0.0,
         converged: true,
+        stopped_by: None,
     }
 }

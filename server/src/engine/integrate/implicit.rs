@@ -44,7 +44,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::cg::{Stop, free_norm};
-use super::{Imposed, Integrator, State, StepReport};
+use super::{Imposed, Integrator, SolveLimit, State, StepReport};
 use crate::engine::elastic::ElasticModel;
 use crate::engine::workers::{Disjoint, share};
 
@@ -164,5 +164,12 @@ pub(super) fn step(
         cg_iterations: report.iterations,
         relative_residual: report.relative_residual,
         converged: report.converged,
+        stopped_by: (!report.converged).then(|| {
+            if it.interrupt.is_raised() {
+                SolveLimit::Interrupted
+            } else {
+                SolveLimit::Iterations
+            }
+        }),
     }
 }

@@ -136,6 +136,42 @@ pub struct StepReport {
     pub relative_residual: f64,
     /// Whether the solve met its tolerance within the iteration cap.
     pub converged: bool,
+    /// What ended a solve that did not converge (`None` when it did, and for
+    /// explicit steps).
+    pub stopped_by: Option<SolveLimit>,
+}
+
+/// What ended a solve before its tolerance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolveLimit {
+    /// A linear solve reached `mechanics.cg_max_iterations`.
+    Iterations,
+    /// A static solve's linear solves together reached the mesh's budget of CG
+    /// iterations ([`max_cg_iterations`](crate::engine::scene::limits::max_cg_iterations)).
+    Budget,
+    /// A corotational static solve made its most rotation updates (1000).
+    RotationUpdates,
+    /// The step was interrupted (the session closing, Ctrl-C in a headless run).
+    Interrupted,
+}
+
+impl std::fmt::Display for SolveLimit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SolveLimit::Iterations => {
+                f.write_str("a linear solve reached mechanics.cg_max_iterations")
+            }
+            SolveLimit::Budget => {
+                f.write_str("the solve used its budget of CG iterations for the mesh")
+            }
+            SolveLimit::RotationUpdates => write!(
+                f,
+                "the solve made its {} rotation updates",
+                statics::MAX_ROTATION_UPDATES
+            ),
+            SolveLimit::Interrupted => f.write_str("the solve was interrupted"),
+        }
+    }
 }
 
 /// The workers for `parts` parts, the caller included: one a part, but no more than

@@ -45,7 +45,7 @@
 use nalgebra::Vector3;
 
 use super::cg::{Stop, free_norm};
-use super::{Imposed, Integrator, State, StepReport};
+use super::{Imposed, Integrator, SolveLimit, State, StepReport};
 use crate::engine::elastic::ElasticModel;
 
 /// Cap on the rotation updates of one corotational static solve. The fixed-point
@@ -97,6 +97,7 @@ pub(super) fn solve(
         cg_iterations: 0,
         relative_residual: 0.0,
         converged: false,
+        stopped_by: None,
     };
     let updates = if it.corotated.is_some() {
         MAX_ROTATION_UPDATES
@@ -146,7 +147,12 @@ pub(super) fn solve(
         };
         // Checked after the rotation update, not before it: the report then holds
         // the nonlinear residual of the state the solve returns.
-        if it.interrupt.is_raised() || inner.max_iterations == 0 {
+        if it.interrupt.is_raised() {
+            report.stopped_by = Some(SolveLimit::Interrupted);
+            break;
+        }
+        if inner.max_iterations == 0 {
+            report.stopped_by = Some(SolveLimit::Budget);
             break;
         }
         for i in 0..model.vertex_count() {
@@ -175,10 +181,20 @@ pub(super) fn solve(
             state.x[i] = model.rest[i] + it.u[i];
         }
         if !cg.converged {
+            report.stopped_by = Some(if it.interrupt.is_raised() {
+                SolveLimit::Interrupted
+            } else if inner.max_iterations < stop.max_iterations {
+                SolveLimit::Budget
+            } else {
+                SolveLimit::Iterations
+            });
             break;
         }
         // A corotational solve loops back to check the residual at the new x.
         report.converged = it.corotated.is_none();
+    }
+    if !report.converged && report.stopped_by.is_none() {
+        report.stopped_by = Some(SolveLimit::RotationUpdates);
     }
     for v in &mut state.v {
         *v = Vector3::zeros();

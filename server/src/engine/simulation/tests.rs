@@ -1,4 +1,7 @@
-use crate::engine::integrate::IntegratorKind;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use crate::engine::integrate::{IntegratorKind, SolveLimit};
 use crate::engine::scene::tests::{MINIMAL, expect_path, parse, scene_dir};
 use crate::engine::scene::{Scene, SceneError};
 
@@ -170,4 +173,41 @@ fn a_static_solve_stops_at_its_budget_of_iterations_over_all_rotation_updates() 
         (budget - 50..=budget).contains(&report.cg_iterations),
         "{report:?}: the solve should run up to its budget of {budget}"
     );
+    assert_eq!(report.stopped_by, Some(SolveLimit::Budget));
+    // Without the budget, the same solve ends at its last rotation update.
+    let mut sim = scene.build().unwrap();
+    sim.integrator.set_static_budget(u32::MAX);
+    let report = sim.solve_static();
+    assert!(
+        !report.converged && report.cg_iterations > 5 * budget,
+        "{report:?}"
+    );
+    assert_eq!(report.stopped_by, Some(SolveLimit::RotationUpdates));
+    // Interrupted before it starts, it says so.
+    let mut sim = scene.build().unwrap();
+    sim.integrator
+        .set_interrupt(Arc::new(AtomicBool::new(true)));
+    let report = sim.solve_static();
+    assert_eq!(
+        report.stopped_by,
+        Some(SolveLimit::Interrupted),
+        "{report:?}"
+    );
+}
+
+#[test]
+fn an_implicit_step_short_of_its_tolerance_names_its_iteration_cap() {
+    let mut scene = Scene::default_scene();
+    scene.mechanics.cg_tolerance = 1e-12;
+    scene.mechanics.cg_max_iterations = 2;
+    let mut sim = scene.build().unwrap();
+    let report = sim.tick();
+    assert!(!report.converged && report.cg_iterations == 2, "{report:?}");
+    assert_eq!(report.stopped_by, Some(SolveLimit::Iterations));
+    // With room to converge, nothing is named.
+    let mut scene = Scene::default_scene();
+    scene.mechanics.cg_tolerance = 1e-6;
+    let report = scene.build().unwrap().tick();
+    assert!(report.converged, "{report:?}");
+    assert_eq!(report.stopped_by, None);
 }
