@@ -33,7 +33,9 @@ use crate::proto::v1::sessions_client::SessionsClient;
 use crate::proto::v1::{
     CloseSessionRequest, CreateSessionRequest, GetSessionRequest, JoinRequest, Role, SessionInfo,
 };
-use crate::station::{Heartbeat, Intake, Link, Poses, Received, Sent, StationError, answered};
+use crate::station::{
+    Heartbeat, Intake, Link, POSE_RATE_RANGE_HZ, Poses, Received, Sent, StationError, answered,
+};
 
 /// What [`run_load`] does.
 #[derive(Clone, Debug, PartialEq)]
@@ -235,11 +237,11 @@ pub async fn run_load(
     config: LoadConfig,
     on_progress: impl FnMut(LoadProgress),
 ) -> Result<LoadSummary, StationError> {
-    if !(config.pose_rate_hz.is_finite() && config.pose_rate_hz > 0.0) {
+    if !POSE_RATE_RANGE_HZ.contains(&config.pose_rate_hz) {
         return Err(StationError::Rate {
             field: "pose rate",
             value: config.pose_rate_hz,
-            expected: "finite and > 0",
+            expected: "between 0.1 and 100000",
         });
     }
     let control = connect(&config.connect).await?;

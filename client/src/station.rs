@@ -68,6 +68,11 @@ use instruments::Instrument;
 
 /// Default rate at which device poses are sent, Hz.
 pub const DEFAULT_POSE_RATE_HZ: f64 = 250.0;
+
+/// The pose rates a station sends at, Hz: from one pose every 10 s (a heartbeat
+/// keeps a slower station alive anyway) to 100 kHz, a hundred times a haptic
+/// device's rate.
+pub const POSE_RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 0.1..=100_000.0;
 /// Largest force the simulated devices render, N.
 pub const DEVICE_MAX_FORCE_N: f64 = 10.0;
 /// Sequence numbers whose send time is remembered: several seconds of poses at
@@ -236,12 +241,16 @@ pub async fn run_station(mut config: StationConfig) -> Result<StationSummary, St
 /// empty its burst allowance in a few seconds, then have poses refused and lose its
 /// stream. A limit of 0 (a server that does not state one), or one that is not a
 /// positive finite number, leaves the configured rate.
+///
+/// The result is kept within [`POSE_RATE_RANGE_HZ`], whatever the server states:
+/// its period, `1 / rate`, is then a time a timer can hold.
 pub fn sending_rate(configured_hz: f64, server_limit_hz: f64) -> f64 {
-    if server_limit_hz.is_finite() && server_limit_hz > 0.0 {
+    let rate = if server_limit_hz.is_finite() && server_limit_hz > 0.0 {
         configured_hz.min(server_limit_hz)
     } else {
         configured_hz
-    }
+    };
+    rate.clamp(*POSE_RATE_RANGE_HZ.start(), *POSE_RATE_RANGE_HZ.end())
 }
 
 /// Progress: the live figures of the station.

@@ -2,13 +2,16 @@
 //! the rates, durations, offsets and sizes a user types, each checked into its range
 //! (a value out of range is a usage error, status 2).
 
+use std::ops::RangeInclusive;
 use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
+use laparo_proto::text::Number;
 
 use crate::connect::{ConnectConfig, DEFAULT_CONNECT_TIMEOUT};
 use crate::haptics::force_loop::RATE_RANGE_HZ;
+use crate::station::POSE_RATE_RANGE_HZ;
 
 /// How to reach the server.
 #[derive(Args, Debug, Clone)]
@@ -82,22 +85,33 @@ pub fn positive_rate(s: &str) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(format!("{v} Hz: a rate must be finite and > 0"))
+        Err(format!("{} Hz: a rate must be finite and > 0", Number(v)))
     }
+}
+
+/// A rate in Hz within `range`; `what` names it in the error ("the haptic rate").
+fn rate_within(s: &str, range: &RangeInclusive<f64>, what: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if range.contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{} Hz: {what} must be between {} and {} Hz",
+            Number(v),
+            range.start(),
+            range.end()
+        ))
+    }
+}
+
+/// A station's pose rate in Hz, within [`POSE_RATE_RANGE_HZ`].
+pub fn pose_rate(s: &str) -> Result<f64, String> {
+    rate_within(s, &POSE_RATE_RANGE_HZ, "a pose rate")
 }
 
 /// A haptic rate in Hz, within the force loop's range.
 pub fn haptic_rate(s: &str) -> Result<f64, String> {
-    let v = number(s)?;
-    if RATE_RANGE_HZ.contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!(
-            "{v} Hz: the haptic rate must be between {} and {} Hz",
-            RATE_RANGE_HZ.start(),
-            RATE_RANGE_HZ.end()
-        ))
-    }
+    rate_within(s, &RATE_RANGE_HZ, "the haptic rate")
 }
 
 /// A replay speed factor: finite and > 0.
@@ -106,7 +120,10 @@ pub fn speed(s: &str) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(format!("{v}: a speed factor must be finite and > 0"))
+        Err(format!(
+            "{}: a speed factor must be finite and > 0",
+            Number(v)
+        ))
     }
 }
 
@@ -116,7 +133,7 @@ pub fn offset(s: &str) -> Result<f64, String> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
-        Err(format!("{v} s: an offset must be finite and ≥ 0"))
+        Err(format!("{} s: an offset must be finite and ≥ 0", Number(v)))
     }
 }
 
@@ -135,13 +152,17 @@ pub fn plot_size(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
-/// A duration in seconds: finite and > 0.
+/// A duration in seconds: > 0 and below 10⁹ s (31 years; far beyond any session, and
+/// well within what `Duration` and `Instant` arithmetic hold).
 pub fn seconds(s: &str) -> Result<Duration, String> {
     let v = number(s)?;
     if v.is_finite() && v > 0.0 && v < 1e9 {
         Ok(Duration::from_secs_f64(v))
     } else {
-        Err(format!("{v} s: a duration must be > 0"))
+        Err(format!(
+            "{} s: a duration must be > 0 and below 1e9 s",
+            Number(v)
+        ))
     }
 }
 

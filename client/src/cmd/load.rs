@@ -6,7 +6,7 @@ use std::time::Duration;
 use clap::Args;
 
 use super::BoxError;
-use super::args::{ServerArgs, positive_rate, seconds};
+use super::args::{ServerArgs, pose_rate, positive_rate, seconds};
 use super::out::say;
 use crate::load::{LoadConfig, LoadSummary, run_load};
 
@@ -23,8 +23,8 @@ pub struct LoadArgs {
     /// the others only receive.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub stations: u32,
-    /// Pose rate of each posing station, Hz.
-    #[arg(long, value_name = "HZ", value_parser = positive_rate)]
+    /// Pose rate of each posing station, Hz (0.1 to 100,000).
+    #[arg(long, value_name = "HZ", value_parser = pose_rate)]
     pub pose_rate: f64,
     /// How long each station stays, s.
     #[arg(long, value_name = "T", value_parser = seconds)]

@@ -6,7 +6,7 @@ use std::time::Duration;
 use clap::Args;
 use tokio::sync::watch;
 
-use super::args::{ServerArgs, haptic_rate, positive_rate, seconds};
+use super::args::{ServerArgs, haptic_rate, pose_rate, positive_rate, seconds};
 use super::out::say;
 use super::{BoxError, ctrl_c};
 use crate::haptics::force_loop::DEFAULT_RATE_HZ;
@@ -33,7 +33,7 @@ pub struct StationArgs {
     )]
     pub instruments: Vec<String>,
     /// Rate at which device poses are sent, Hz.
-    #[arg(long, value_name = "HZ", default_value_t = DEFAULT_POSE_RATE_HZ, value_parser = positive_rate)]
+    #[arg(long, value_name = "HZ", default_value_t = DEFAULT_POSE_RATE_HZ, value_parser = pose_rate)]
     pub pose_rate: f64,
     /// Haptic rate of the force loops, Hz (300 to 4000).
     #[arg(long, value_name = "HZ", default_value_t = DEFAULT_RATE_HZ, value_parser = haptic_rate)]

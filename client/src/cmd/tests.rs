@@ -210,6 +210,33 @@ fn bad_values_are_usage_errors() {
         assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad:?}");
         assert_eq!(e.exit_code(), 2);
     }
+    // Out of range far enough that a timer could not hold the period, or that the
+    // number has hundreds of digits: refused, and echoed short, with the range.
+    for (bad, said) in [
+        (
+            &["--pose-rate", "1e-300"][..],
+            "1e-300 Hz: a pose rate must be between 0.1 and 100000 Hz",
+        ),
+        (
+            &["--pose-rate", "1e300"],
+            "1e300 Hz: a pose rate must be between",
+        ),
+        (
+            &["--haptic-rate", "1e300"],
+            "1e300 Hz: the haptic rate must be",
+        ),
+        (
+            &["--seconds", "1e9"],
+            "1000000000 s: a duration must be > 0 and below 1e9 s",
+        ),
+        (&["--seconds", "1e300"], "1e300 s: a duration must be"),
+    ] {
+        let args: Vec<&str> = base.iter().chain(bad).copied().collect();
+        let e = parse(&args).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ValueValidation, "{bad:?}");
+        assert!(e.to_string().contains(said), "{bad:?}: {e}");
+        assert!(e.to_string().len() < 300, "{bad:?}: {e}");
+    }
     let e = parse(&[
         "observe",
         "--server",

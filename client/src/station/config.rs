@@ -4,7 +4,11 @@ use std::time::Duration;
 
 use tokio::sync::watch;
 
-use super::{DEFAULT_POSE_RATE_HZ, EventSink, GestureFn, StationProgress, StopSignal};
+use laparo_proto::text::Number;
+
+use super::{
+    DEFAULT_POSE_RATE_HZ, EventSink, GestureFn, POSE_RATE_RANGE_HZ, StationProgress, StopSignal,
+};
 use crate::connect::{ConnectConfig, ConnectError};
 use crate::haptics::ConfigError;
 use crate::haptics::force_loop::{DEFAULT_RATE_HZ, RATE_RANGE_HZ};
@@ -100,7 +104,7 @@ pub enum StationError {
     #[error("protocol error: {0}")]
     Protocol(String),
     /// A rate out of range.
-    #[error("{field} = {value} Hz is out of range (expected {expected})")]
+    #[error("{field} = {} Hz is out of range (expected {expected})", Number(*value))]
     Rate {
         field: &'static str,
         value: f64,
@@ -154,14 +158,14 @@ fn check_rate(
 }
 
 impl StationConfig {
-    /// Checks the rates: the pose rate finite and > 0, the haptic rate within the
-    /// force loop's range.
+    /// Checks the rates: the pose rate within [`POSE_RATE_RANGE_HZ`], the haptic
+    /// rate within the force loop's range.
     pub(super) fn check_rates(&self) -> Result<(), StationError> {
         check_rate(
             "pose rate",
             self.pose_rate_hz,
-            self.pose_rate_hz.is_finite() && self.pose_rate_hz > 0.0,
-            "finite and > 0",
+            POSE_RATE_RANGE_HZ.contains(&self.pose_rate_hz),
+            "between 0.1 and 100000",
         )?;
         check_rate(
             "haptic rate",

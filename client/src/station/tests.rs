@@ -105,3 +105,24 @@ fn a_join_must_grant_every_instrument_claimed() {
         );
     }
 }
+
+#[test]
+fn the_sending_rate_is_the_lower_of_the_two_and_always_a_timer_period() {
+    assert_eq!(sending_rate(250.0, 1000.0), 250.0);
+    assert_eq!(sending_rate(250.0, 100.0), 100.0);
+    // A server that states no limit, or one that is not a rate, leaves the configured.
+    for none in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert_eq!(sending_rate(250.0, none), 250.0, "{none}");
+    }
+    // A server's limit far below any station's rate still gives a period a timer
+    // holds (1 / 1e-300 s would panic in `Duration::from_secs_f64`).
+    for limit in [1e-300, f64::MIN_POSITIVE, 1e-3] {
+        let rate = sending_rate(250.0, limit);
+        assert_eq!(rate, *POSE_RATE_RANGE_HZ.start(), "{limit}");
+        assert!(std::time::Duration::try_from_secs_f64(1.0 / rate).is_ok());
+    }
+    let mut config = StationConfig::new("http://h:1", "s", vec!["left".to_string()]);
+    config.pose_rate_hz = 1e-300;
+    let e = config.check_rates().unwrap_err().to_string();
+    assert!(e.contains("pose rate = 1e-300 Hz is out of range"), "{e}");
+}
