@@ -145,7 +145,8 @@ fn server_state(r: &RecordingInfo) -> String {
 
 /// The rows of the recordings in `dir`, an unreadable one with why.
 fn list_dir(dir: &Path) -> Result<(), BoxError> {
-    let listed = list(dir, |_| false).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let listed = list(dir, laparo_server::recording::lock::path_being_written)
+        .map_err(|e| format!("{}: {e}", dir.display()))?;
     header();
     for l in listed {
         match &l.entry {

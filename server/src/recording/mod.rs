@@ -60,6 +60,7 @@
 pub mod chunked;
 pub mod foxglove_scene;
 pub mod list;
+pub mod lock;
 pub mod reader;
 pub mod recorder;
 pub mod records;

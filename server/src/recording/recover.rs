@@ -99,6 +99,14 @@ pub enum RecoverError {
          no file written"
     )]
     NothingToRecover { file: String, why: String },
+    /// The input, or the file the output would replace, is locked by a live
+    /// recorder ([`super::lock`]).
+    #[error(
+        "{file} is being recorded: a running server holds it (its session has not \
+         ended); recovering it now would cut the rest of the session off, so it is \
+         left as it is"
+    )]
+    BeingRecorded { file: String },
 }
 
 /// Rewrites the recording `input` into a complete one at `output` (which may be
@@ -112,6 +120,9 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         file: file.clone(),
         source,
     })?;
+    if source.being_written() {
+        return Err(RecoverError::BeingRecorded { file });
+    }
     let out_name = output.display().to_string();
     let write_error = |message: String| RecoverError::Write {
         file: out_name.clone(),
@@ -123,6 +134,9 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
                 file: out_name,
                 kind: file_kind(&meta),
             });
+        }
+        Ok(_) if super::lock::path_being_written(output) => {
+            return Err(RecoverError::BeingRecorded { file: out_name });
         }
         Ok(_) => same_file(input, output),
         Err(_) => false,

@@ -100,6 +100,15 @@ impl Source {
         })
     }
 
+    /// Whether a live recorder is writing the file ([`super::lock`]); `false` for
+    /// bytes held in memory.
+    pub fn being_written(&self) -> bool {
+        match &self.bytes {
+            Bytes::File(f) => super::lock::being_written(f),
+            Bytes::Held(_) => false,
+        }
+    }
+
     /// Bytes held in memory.
     pub fn held(bytes: Vec<u8>) -> Self {
         Source {

@@ -93,6 +93,7 @@ pub fn created<T>(path: &Path, start: impl FnOnce(File) -> McapResult<T>) -> Mca
         .write(true)
         .create_new(true)
         .open(path)?;
+    super::lock::hold(&file, path);
     start(file).inspect_err(|_| {
         let _ = std::fs::remove_file(path);
     })

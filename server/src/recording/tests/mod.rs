@@ -23,6 +23,7 @@ mod chunked;
 mod damage;
 mod files;
 mod list;
+mod lock;
 mod read_back;
 mod recorder;
 mod resim;
