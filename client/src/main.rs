@@ -46,7 +46,8 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("laparo: {e}");
+            // The error may quote a path, a name or a server's text.
+            eprintln!("laparo: {}", laparo_proto::text::printable(&e.to_string()));
             ExitCode::from(1)
         }
     }

@@ -16,6 +16,8 @@ use std::fmt;
 use std::io::{self, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use laparo_proto::text::printable;
+
 /// Set by [`finish_when_closed`]: a closed pipe silences output instead of exiting.
 static FINISH_WHEN_CLOSED: AtomicBool = AtomicBool::new(false);
 /// Set once standard output was found closed under [`finish_when_closed`].
@@ -59,9 +61,14 @@ impl Ending {
 }
 
 /// Writes `args` and a newline to `w` and flushes it, so that a closed reader shows
-/// at this line and not at exit.
+/// at this line and not at exit. Whatever the line holds (a session id, a path, a
+/// server's text), a character a terminal would act on is written escaped
+/// ([`printable`]): every line of the client's output passes here.
 pub fn write_line(w: &mut impl Write, args: fmt::Arguments<'_>) -> io::Result<()> {
-    w.write_fmt(args)?;
+    match args.as_str() {
+        Some(text) => w.write_all(printable(text).as_bytes())?,
+        None => w.write_all(printable(&args.to_string()).as_bytes())?,
+    }
     w.write_all(b"\n")?;
     w.flush()
 }
@@ -107,5 +114,16 @@ mod tests {
         write_line(&mut buffer, format_args!("a {} b", 2)).unwrap();
         write_line(&mut buffer, format_args!("")).unwrap();
         assert_eq!(buffer, b"a 2 b\n\n");
+    }
+
+    #[test]
+    fn a_line_holding_terminal_controls_is_written_escaped() {
+        let mut buffer = Vec::new();
+        let session = "s1\u{1b}]0;PWN\u{7}\u{1b}[2J";
+        write_line(&mut buffer, format_args!("joining session {session}")).unwrap();
+        assert_eq!(
+            String::from_utf8(buffer).unwrap(),
+            "joining session s1\\u{1b}]0;PWN\\u{7}\\u{1b}[2J\n"
+        );
     }
 }
