@@ -167,3 +167,37 @@ fn the_demo_presses_the_liver_and_reports() {
     assert!(again.contains("ticks"), "{again}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_demo_that_cannot_record_fails_and_names_no_recording() {
+    let dir = std::env::temp_dir().join(format!("laparo-demo-norec-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, b"not a folder").unwrap();
+    // A file as the folder: refused before the demo starts.
+    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+        .args(["demo", "--seconds", "0.5", "--recordings"])
+        .arg(&file)
+        .output()
+        .expect("laparo runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not a folder"), "{stderr}");
+    // A folder inside that file cannot be made: the demo runs, the recorder fails,
+    // and the run ends saying the session was not recorded, naming the cause.
+    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+        .args(["demo", "--seconds", "0.5", "--recordings"])
+        .arg(file.join("sub"))
+        .output()
+        .expect("laparo runs");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(1), "{stdout}\n{stderr}");
+    assert!(stdout.contains("recording            none:"), "{stdout}");
+    assert!(stdout.contains("Not a directory"), "{stdout}");
+    assert!(!stdout.contains("compression stream"), "{stdout}");
+    assert!(stderr.contains("the session was not recorded"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -42,6 +42,14 @@ pub async fn run(args: DemoArgs) -> Result<(), BoxError> {
         .recordings
         .clone()
         .unwrap_or_else(|| PathBuf::from("recordings"));
+    // A folder that cannot be one is said now, not after the demo as a recorder error.
+    if recordings.exists() && !recordings.is_dir() {
+        return Err(format!(
+            "--recordings {}: not a folder, so the session cannot be recorded in it",
+            recordings.display()
+        )
+        .into());
+    }
     let config = ServeConfig {
         recordings: Some(recordings.clone()),
         ..ServeConfig::default()
@@ -82,13 +90,23 @@ pub async fn run(args: DemoArgs) -> Result<(), BoxError> {
     let served = server.await;
     let summary = summary?;
     print_summary(&summary);
-    match &session.recording_file {
-        Some(file) => say!("  recording            {}", recordings.join(file).display()),
+    // The session names its file when it starts; whether the recorder could write it
+    // is known once the session has ended.
+    let written = session
+        .recording_file
+        .as_ref()
+        .map(|file| recordings.join(file))
+        .filter(|path| path.is_file());
+    match &written {
+        Some(path) => say!("  recording            {}", path.display()),
         None => say!(
             "  recording            none: {} could not be written (see the events above)",
             recordings.display()
         ),
     }
     served??;
+    if written.is_none() {
+        return Err(format!("the session was not recorded in {}", recordings.display()).into());
+    }
     Ok(())
 }

@@ -34,7 +34,7 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
     let mut meta = recording.meta().clone();
     if let Some(scene) = &args.scene {
         let bytes = read_bounded(scene, None, MAX_SCENE_BYTES)
-            .map_err(|e| format!("{} {e}", scene.display()))?;
+            .map_err(|e| format!("cannot read {}: {e}", scene.display()))?;
         meta.scene_toml = String::from_utf8(bytes)
             .map_err(|e| format!("{} is not UTF-8 text: {e}", scene.display()))?;
         // A bare file name's folder is the working one (its parent is empty).

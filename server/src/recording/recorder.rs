@@ -354,10 +354,15 @@ impl Drop for Recorder {
 }
 
 /// An error and the errors that caused it, outermost first: an MCAP I/O error
-/// alone says only that writing failed, its source says the disk is full.
-pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut cause = e.source();
+/// alone says only that writing failed, its source says the disk is full. The MCAP
+/// I/O error's own words ("I/O error from writing, or reading a compression
+/// stream") are left out: they name no cause, and a file that cannot be created was
+/// neither written nor read.
+pub(crate) fn with_causes(e: &(dyn std::error::Error + 'static)) -> String {
+    let (mut text, mut cause) = match (e.downcast_ref::<mcap::McapError>(), e.source()) {
+        (Some(mcap::McapError::Io(_)), Some(source)) => (source.to_string(), source.source()),
+        _ => (e.to_string(), e.source()),
+    };
     while let Some(c) = cause {
         let c_text = c.to_string();
         if !text.contains(&c_text) {
@@ -378,7 +383,8 @@ fn run(path: &Path, header: &SessionHeader, rx: &Receiver<Msg>, shared: &Shared)
         .unwrap_or(path.as_os_str())
         .to_string_lossy()
         .into_owned();
-    let fail = |error: fn(String, String) -> RecorderError, e: &dyn std::error::Error| {
+    let fail = |error: fn(String, String) -> RecorderError,
+                e: &(dyn std::error::Error + 'static)| {
         let error = error(file.clone(), with_causes(e));
         tracing::error!(session = %header.session_id, "recorder: {error}");
         shared.stats.errors.fetch_add(1, Ordering::Relaxed);
