@@ -471,9 +471,14 @@ fn run(args: RunArgs) -> Result<(), String> {
     // From here on Ctrl-C ends the run cleanly (see `headless::signal`).
     let stop = headless::signal::stop_flag();
     sim.integrator.set_interrupt(stop.clone());
+    let unwritten = if args.export.is_some() {
+        "; --export not written"
+    } else {
+        ""
+    };
     let interrupted = |at: &Simulation, what: &str| {
         format!(
-            "interrupted at tick {} (t = {:.3} s){what}; --export not written",
+            "interrupted at tick {} (t = {:.3} s){what}{unwritten}",
             at.tick, at.time
         )
     };

@@ -54,8 +54,9 @@ pub enum ReadError {
     Corrupt { file: String, message: String },
     #[error(
         "{file} ends before the recording's description (its `laparo.scene` \
-         metadata; its whole records stop at byte {end}): it was cut short as its session started (a stopped \
-         server) or is damaged there, and holds nothing to replay or recover"
+         metadata; its whole records stop at byte {end}): it was cut short as its \
+         session started (a stopped server) or is damaged there, and holds nothing to \
+         replay or recover"
     )]
     CutBeforeDescription { file: String, end: u64 },
     #[error("{file} is not a laparo recording: {message}")]
