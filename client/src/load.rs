@@ -35,6 +35,7 @@ use crate::proto::v1::{
 };
 use crate::station::{
     Heartbeat, Intake, Link, POSE_RATE_RANGE_HZ, Poses, Received, Sent, StationError, answered,
+    check_rate,
 };
 
 /// What [`run_load`] does.
@@ -237,13 +238,7 @@ pub async fn run_load(
     config: LoadConfig,
     on_progress: impl FnMut(LoadProgress),
 ) -> Result<LoadSummary, StationError> {
-    if !POSE_RATE_RANGE_HZ.contains(&config.pose_rate_hz) {
-        return Err(StationError::Rate {
-            field: "pose rate",
-            value: config.pose_rate_hz,
-            expected: "between 0.1 and 100000",
-        });
-    }
+    check_rate("pose rate", config.pose_rate_hz, &POSE_RATE_RANGE_HZ)?;
     let control = connect(&config.connect).await?;
     let mut sessions = control.sessions();
     let (session, created) = open_session(&mut sessions, &config).await?;

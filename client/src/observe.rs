@@ -184,7 +184,7 @@ pub async fn run_observe(
         return Err(StationError::Rate {
             field: "frame rate",
             value: rate,
-            expected: "finite and > 0",
+            expected: "finite and > 0".to_owned(),
         });
     }
     let started = Instant::now();

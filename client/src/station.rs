@@ -55,6 +55,7 @@ mod report;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use config::check_rate;
 pub use config::{StationConfig, StationError};
 pub use heartbeat::HEARTBEAT_PERIOD;
 pub(crate) use heartbeat::Heartbeat;

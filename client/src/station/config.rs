@@ -108,7 +108,7 @@ pub enum StationError {
     Rate {
         field: &'static str,
         value: f64,
-        expected: &'static str,
+        expected: String,
     },
     /// The force loop configuration was refused.
     #[error(transparent)]
@@ -140,19 +140,25 @@ impl StationError {
     }
 }
 
-fn check_rate(
+/// Checks that `value` lies within `range`; out of it, the error names `field` and
+/// the range, written from the range itself so that the words cannot drift from the
+/// check.
+pub(crate) fn check_rate(
     field: &'static str,
     value: f64,
-    ok: bool,
-    expected: &'static str,
+    range: &std::ops::RangeInclusive<f64>,
 ) -> Result<(), StationError> {
-    if ok {
+    if range.contains(&value) {
         Ok(())
     } else {
         Err(StationError::Rate {
             field,
             value,
-            expected,
+            expected: format!(
+                "between {} and {}",
+                Number(*range.start()),
+                Number(*range.end())
+            ),
         })
     }
 }
@@ -161,17 +167,7 @@ impl StationConfig {
     /// Checks the rates: the pose rate within [`POSE_RATE_RANGE_HZ`], the haptic
     /// rate within the force loop's range.
     pub(super) fn check_rates(&self) -> Result<(), StationError> {
-        check_rate(
-            "pose rate",
-            self.pose_rate_hz,
-            POSE_RATE_RANGE_HZ.contains(&self.pose_rate_hz),
-            "between 0.1 and 100000",
-        )?;
-        check_rate(
-            "haptic rate",
-            self.haptic_rate_hz,
-            RATE_RANGE_HZ.contains(&self.haptic_rate_hz),
-            "between 300 and 4000",
-        )
+        check_rate("pose rate", self.pose_rate_hz, &POSE_RATE_RANGE_HZ)?;
+        check_rate("haptic rate", self.haptic_rate_hz, &RATE_RANGE_HZ)
     }
 }

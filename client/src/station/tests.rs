@@ -125,4 +125,12 @@ fn the_sending_rate_is_the_lower_of_the_two_and_always_a_timer_period() {
     config.pose_rate_hz = 1e-300;
     let e = config.check_rates().unwrap_err().to_string();
     assert!(e.contains("pose rate = 1e-300 Hz is out of range"), "{e}");
+    assert!(e.ends_with("(expected between 0.1 and 100000)"), "{e}");
+    config.pose_rate_hz = 100_000.0;
+    config.haptic_rate_hz = 299.5;
+    let e = config.check_rates().unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "haptic rate = 299.5 Hz is out of range (expected between 300 and 4000)"
+    );
 }
