@@ -205,28 +205,13 @@ fn serve(args: ServeArgs) -> Result<(), String> {
     served
 }
 
-/// SIGINT (Ctrl-C) or SIGTERM.
+/// SIGINT (Ctrl-C) or SIGTERM; Ctrl-C alone where SIGTERM cannot be watched.
 async fn shutdown_signal() {
-    let interrupt = tokio::signal::ctrl_c();
     #[cfg(unix)]
-    {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut term) => {
-                tokio::select! {
-                    _ = interrupt => {}
-                    _ = term.recv() => {}
-                }
-            }
-            Err(_) => {
-                let _ = interrupt.await;
-            }
-        }
+    if let Ok(mut signals) = headless::signal::StopSignals::install() {
+        return signals.recv().await;
     }
-    #[cfg(not(unix))]
-    {
-        let _ = interrupt.await;
-    }
+    let _ = tokio::signal::ctrl_c().await;
 }
 
 #[derive(Subcommand, Debug)]
