@@ -145,8 +145,8 @@ pub struct LoadSummary {
     pub poses_dropped: u64,
     /// Station errors received, by code name.
     pub errors: BTreeMap<String, u64>,
-    /// Stations that failed, with why.
-    pub failures: Vec<String>,
+    /// Stations that failed, with why, in station order.
+    pub failures: Vec<StationFailure>,
     /// Why the session's own figures (ticks, recorder) are missing: it ended
     /// before the run asked for them.
     pub session_gone: Option<String>,
@@ -172,7 +172,58 @@ pub struct LoadSummary {
     pub recorder_max_lag_ms: f64,
 }
 
+/// A station of a load run that failed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StationFailure {
+    /// The station's index in the run; `None` for a task that ended without
+    /// giving its result (it panicked).
+    pub station: Option<usize>,
+    /// Why, in words.
+    pub why: String,
+}
+
+impl std::fmt::Display for StationFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.station {
+            Some(i) => write!(f, "station {i}: {}", self.why),
+            None => write!(f, "a station: {}", self.why),
+        }
+    }
+}
+
 impl LoadSummary {
+    /// The failures with one line for each distinct reason, naming the stations
+    /// it stopped ("stations 2, 64–9999 (9937): why"), in order of first station:
+    /// a thousand stations refused for one reason are one line, not a thousand.
+    pub fn failures_by_reason(&self) -> Vec<String> {
+        let mut reasons: Vec<(&str, Vec<Option<usize>>)> = Vec::new();
+        for failure in &self.failures {
+            match reasons.iter_mut().find(|(why, _)| *why == failure.why) {
+                Some((_, stations)) => stations.push(failure.station),
+                None => reasons.push((&failure.why, vec![failure.station])),
+            }
+        }
+        reasons
+            .into_iter()
+            .map(|(why, stations)| {
+                if let [station] = stations[..] {
+                    return StationFailure {
+                        station,
+                        why: why.to_owned(),
+                    }
+                    .to_string();
+                }
+                let mut known: Vec<usize> = stations.iter().flatten().copied().collect();
+                known.sort_unstable();
+                let mut named = ranges(&known);
+                if known.len() < stations.len() {
+                    named.push_str(if named.is_empty() { "?" } else { ", ?" });
+                }
+                format!("stations {named} ({}): {why}", stations.len())
+            })
+            .collect()
+    }
+
     /// Mean surface frames per completed station.
     pub fn mean_frames(&self) -> f64 {
         if self.frames_per_station.is_empty() {
@@ -193,17 +244,22 @@ impl LoadSummary {
     /// This run as one markdown table row.
     pub fn markdown_row(&self) -> String {
         let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
+        // With no pose answered there is no latency to show, not a latency of 0.
+        let latency = |ms: f64| match self.latency.count {
+            0 => "–".to_owned(),
+            _ => format!("{ms:.2}"),
+        };
         format!(
-            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {:.2} |",
+            "| {} | {} | {} | {} | {} | {:.1} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {:.2} |",
             self.stations,
             self.posing_stations,
             self.pose_rate_hz,
             self.seconds,
             min,
             self.mean_frames(),
-            self.latency.p50_ms,
-            self.latency.p99_ms,
-            self.latency.p999_ms,
+            latency(self.latency.p50_ms),
+            latency(self.latency.p99_ms),
+            latency(self.latency.p999_ms),
             self.missed_deadlines,
             self.tick_time_p50_ms,
             self.tick_time_p99_ms,
@@ -215,6 +271,45 @@ impl LoadSummary {
             self.recorder_max_lag_ms,
         )
     }
+}
+
+/// Sorted, distinct indices written as runs: `[0, 2, 3, 4, 9]` as "0, 2–4, 9".
+fn ranges(indices: &[usize]) -> String {
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for &i in indices {
+        match runs.last_mut() {
+            Some((_, last)) if *last + 1 == i => *last = i,
+            _ => runs.push((i, i)),
+        }
+    }
+    runs.iter()
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}–{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Whether `stations` more stations fit `session`, by the limit its server states
+/// (`SessionInfo.max_stations`, 0 for none). Checked before any station starts:
+/// past the limit each join is refused, and a run of hundreds would end in as many
+/// failures that bury the figures of the stations that did join.
+fn check_room(session: &SessionInfo, stations: usize) -> Result<(), StationError> {
+    let connected = session.stations.len();
+    let max = session.max_stations;
+    if max > 0 && connected.saturating_add(stations) > max as usize {
+        return Err(StationError::NoRoom {
+            session: session.session_id.clone(),
+            asked: stations,
+            connected,
+            max,
+        });
+    }
+    Ok(())
 }
 
 /// Which instrument each of `stations` stations claims: the free instruments of
@@ -242,6 +337,19 @@ pub async fn run_load(
     let control = connect(&config.connect).await?;
     let mut sessions = control.sessions();
     let (session, created) = open_session(&mut sessions, &config).await?;
+    if let Err(e) = check_room(&session, config.stations.max(1)) {
+        if created {
+            // Best effort: the refusal is the error to report, and an unclosed
+            // session ends by its idle timeout.
+            let _ = sessions
+                .close_session(unary(CloseSessionRequest {
+                    session_id: session.session_id.clone(),
+                    reason: "load run refused: too many stations".into(),
+                }))
+                .await;
+        }
+        return Err(e);
+    }
     let session_id = session.session_id.clone();
     let assignment = assign_instruments(&session, config.stations.max(1));
     let posing_stations = assignment.iter().filter(|a| a.is_some()).count();
@@ -326,8 +434,9 @@ async fn open_session(
     })
 }
 
-/// A station's result, with its index in the run.
-type StationResult = (usize, Result<StationLoad, StationError>);
+/// A station's result, with its index in the run (`None` for a task that
+/// panicked).
+type StationResult = (Option<usize>, Result<StationLoad, StationError>);
 
 /// One task a station, each on its own connection, claiming the instrument
 /// `assignment` gives it (or none).
@@ -355,7 +464,7 @@ fn start_stations(
                 load_station(&connection, open, rate, duration, &counters).await
             }
             .await;
-            (index, result)
+            (Some(index), result)
         });
     }
     tasks
@@ -378,7 +487,7 @@ async fn gather(
         tokio::select! {
             joined = tasks.join_next() => match joined {
                 Some(Ok(result)) => results.push(result),
-                Some(Err(e)) => results.push((usize::MAX, Err(StationError::Protocol(format!("station task failed: {e}"))))),
+                Some(Err(e)) => results.push((None, Err(StationError::Protocol(format!("station task failed: {e}"))))),
                 None => break,
             },
             _ = progress_tick.tick() => on_progress(counters.snapshot()),
@@ -406,7 +515,10 @@ fn add_up(summary: &mut LoadSummary, results: Vec<StationResult>) {
                     latency.merge(&station.latency);
                 }
             }
-            Err(e) => summary.failures.push(format!("station {index}: {e}")),
+            Err(e) => summary.failures.push(StationFailure {
+                station: index,
+                why: e.to_string(),
+            }),
         }
     }
     summary.latency = latency.summary();
@@ -529,5 +641,60 @@ mod tests {
             row.starts_with("| 3 | 2 | 250 | 10 | 590 | 597.0 |"),
             "{row}"
         );
+    }
+
+    #[test]
+    fn a_row_without_latency_samples_shows_none_not_zero() {
+        let row = LoadSummary::default().markdown_row();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        // Cells 7–9 are the latency percentiles (cell 0 is before the first bar).
+        assert_eq!(cells[7..10], ["–", "–", "–"], "{row}");
+    }
+
+    #[test]
+    fn failures_are_told_once_per_reason_with_the_stations_it_stopped() {
+        let failure = |station, why: &str| StationFailure {
+            station,
+            why: why.into(),
+        };
+        let mut failures = vec![failure(Some(1), "the session ended")];
+        failures.extend((64..10_000).map(|i| failure(Some(i), "full")));
+        failures.push(failure(Some(2), "full"));
+        failures.push(failure(None, "full"));
+        failures.push(failure(None, "panicked"));
+        let summary = LoadSummary {
+            failures,
+            ..LoadSummary::default()
+        };
+        assert_eq!(
+            summary.failures_by_reason(),
+            [
+                "station 1: the session ended",
+                "stations 2, 64–9999, ? (9938): full",
+                "a station: panicked",
+            ]
+        );
+        assert_eq!(ranges(&[0, 2, 3, 4, 9]), "0, 2–4, 9");
+        assert_eq!(ranges(&[]), "");
+    }
+
+    #[test]
+    fn a_run_that_would_overfill_the_session_is_refused_before_it_starts() {
+        let session = |connected: usize, max| SessionInfo {
+            session_id: "s1".into(),
+            stations: vec![Default::default(); connected],
+            max_stations: max,
+            ..Default::default()
+        };
+        assert!(check_room(&session(0, 64), 64).is_ok());
+        assert!(check_room(&session(60, 64), 4).is_ok());
+        // A server that states no limit leaves it to each join.
+        assert!(check_room(&session(3, 0), 10_000).is_ok());
+        let e = check_room(&session(60, 64), 5).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "5 more stations do not fit session `s1`: it takes at most 64 at once and has 60"
+        );
+        assert!(check_room(&session(0, 64), usize::MAX).is_err());
     }
 }

@@ -404,7 +404,7 @@ async fn soak(a: &Args) {
     while let Some(r) = loads.join_next().await {
         match r {
             Ok(Ok(s)) => {
-                failures.extend(s.failures.iter().cloned());
+                failures.extend(s.failures.iter().map(|f| f.to_string()));
                 summaries.push(s);
             }
             Ok(Err(e)) => failures.push(e.to_string()),

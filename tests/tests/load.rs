@@ -99,11 +99,50 @@ async fn a_session_closed_under_a_load_run_is_said_by_its_stations() {
         summary
             .failures
             .iter()
-            .all(|f| f.contains("end of exercise")),
+            .all(|f| f.why.contains("end of exercise")),
         "{:?}",
         summary.failures
     );
     let gone = summary.session_gone.as_deref().unwrap_or_default();
     assert!(gone.contains("no session"), "{gone}");
+    server.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_larger_than_a_session_takes_is_refused_and_leaves_no_session() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
+    let max = laparo_server::service::limits::MAX_STATIONS_PER_SESSION;
+    let config = LoadConfig {
+        connect: ConnectConfig::new(format!("http://{}", server.addr)),
+        session: None,
+        stations: max + 1,
+        pose_rate_hz: 100.0,
+        duration: Duration::from_secs(2),
+        surface_frame_rate_hz: None,
+        scene: None,
+        record: Some(false),
+    };
+    let e = run_load(config, |_| {}).await.unwrap_err();
+    assert!(
+        e.to_string()
+            .contains(&format!("it takes at most {max} at once and has 0")),
+        "{e}"
+    );
+    // The session it created to find the limit is closed again.
+    let left = sessions
+        .list_sessions(v1::ListSessionsRequest::default())
+        .await
+        .unwrap()
+        .into_inner()
+        .sessions;
+    assert!(left.is_empty(), "{left:?}");
+    // The limit is the one the server states, and the one its joins enforce.
+    let session = sessions
+        .create_session(v1::CreateSessionRequest::default())
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(session.max_stations as usize, max);
     server.shutdown().await.unwrap();
 }

@@ -97,7 +97,7 @@ fn print_summary(summary: &LoadSummary) {
     for (code, n) in &summary.errors {
         say!("station errors {code}: {n}");
     }
-    for failure in &summary.failures {
+    for failure in summary.failures_by_reason() {
         say!("failed: {failure}");
     }
     if let Some(why) = &summary.session_gone {

@@ -110,6 +110,17 @@ pub enum StationError {
         value: f64,
         expected: String,
     },
+    /// More stations asked for than the session has room for.
+    #[error(
+        "{asked} more stations do not fit session `{session}`: it takes at most {max} at once \
+         and has {connected}"
+    )]
+    NoRoom {
+        session: String,
+        asked: usize,
+        connected: usize,
+        max: u32,
+    },
     /// The force loop configuration was refused.
     #[error(transparent)]
     ForceLoop(#[from] ConfigError),

@@ -10,7 +10,7 @@ use tonic::{Request, Response, Status};
 use super::auth::caller;
 use super::limits;
 use super::registry::Registry;
-use crate::session::idle_timeout;
+use crate::session::{Session, idle_timeout};
 
 pub struct SessionsService {
     pub registry: Arc<Registry>,
@@ -36,7 +36,7 @@ impl Sessions for SessionsService {
             &r.scene
         };
         let session = self.registry.create(scene, idle, r.record)?;
-        Ok(Response::new(session.info()))
+        Ok(Response::new(described(&session)))
     }
 
     async fn get_session(
@@ -46,7 +46,7 @@ impl Sessions for SessionsService {
         caller(&request)?;
         limits::check_name("session_id", &request.get_ref().session_id)?;
         let session = self.registry.get(&request.get_ref().session_id)?;
-        Ok(Response::new(session.info()))
+        Ok(Response::new(described(&session)))
     }
 
     async fn list_sessions(
@@ -54,7 +54,7 @@ impl Sessions for SessionsService {
         request: Request<v1::ListSessionsRequest>,
     ) -> Result<Response<v1::ListSessionsResponse>, Status> {
         caller(&request)?;
-        let sessions = self.registry.list().iter().map(|s| s.info()).collect();
+        let sessions = self.registry.list().iter().map(|s| described(s)).collect();
         Ok(Response::new(v1::ListSessionsResponse { sessions }))
     }
 
@@ -74,7 +74,7 @@ impl Sessions for SessionsService {
         };
         let session = self.registry.close(&r.session_id, &reason)?;
         Ok(Response::new(v1::CloseSessionResponse {
-            session: Some(session.info()),
+            session: Some(described(&session)),
         }))
     }
 
@@ -106,5 +106,14 @@ impl Sessions for SessionsService {
         Ok(Response::new(v1::EvictStationResponse {
             station: Some(station),
         }))
+    }
+}
+
+/// A session as the contract describes it, with the limits this service holds it
+/// to (the session itself does not know them).
+fn described(session: &Session) -> v1::SessionInfo {
+    v1::SessionInfo {
+        max_stations: limits::MAX_STATIONS_PER_SESSION as u32,
+        ..session.info()
     }
 }

@@ -450,6 +450,8 @@ impl Session {
             recorder_max_backlog: recorder(|r| r.max_backlog.load(Ordering::Relaxed)),
             recorder_max_lag_ms: recorder(|r| r.max_lag_us.load(Ordering::Relaxed)) as f64 * 1e-3,
             simulation_error: s.simulation_error.get().cloned(),
+            // The service's limit, which it fills in (`service::sessions`).
+            max_stations: 0,
         }
     }
 
