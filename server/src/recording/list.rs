@@ -174,7 +174,8 @@ impl Lister {
         Self::default()
     }
 
-    /// Every regular file of `dir` whose name ends in `.mcap` (and is UTF-8), at
+    /// Every regular file of `dir` whose name ends in `.mcap` (one whose name is not
+    /// UTF-8 as [`ReadError::NameNotText`]), at
     /// most the [`MAX_LISTED_FILES`] most recently modified, oldest recording first
     /// (by start time, then name), the files that cannot be read last (by name).
     pub fn list(
@@ -204,13 +205,15 @@ impl Lister {
         let mut candidates = Vec::new();
         for entry in std::fs::read_dir(dir)? {
             let entry = entry?;
-            let Ok(file) = entry.file_name().into_string() else {
-                continue;
-            };
+            let name = entry.file_name();
+            // A name that is not text is listed, as unreadable, under a lossy copy
+            // of it: left out, a user would not know why their file is missing.
+            let text = name.to_str().is_some();
+            let file = name.to_string_lossy().into_owned();
             if !file.ends_with(".mcap") {
                 continue;
             }
-            let path = dir.join(&file);
+            let path = dir.join(&name);
             // Not through symbolic links: only what the directory itself holds.
             let Ok(metadata) = std::fs::symlink_metadata(&path) else {
                 continue;
@@ -218,7 +221,7 @@ impl Lister {
             if !metadata.file_type().is_file() {
                 continue;
             }
-            candidates.push((file, path, metadata));
+            candidates.push((file, path, metadata, text));
         }
         let left_out = candidates.len().saturating_sub(max);
         if left_out > 0 {
@@ -232,13 +235,16 @@ impl Lister {
         }
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         let mut out = Vec::new();
-        for (file, path, metadata) in candidates {
+        for (file, path, metadata, text) in candidates {
             let mut version = Version::of(&metadata);
             let (mut bytes_read, mut fresh) = (0, false);
             let mut read = |version: Version| match cache.get(&file) {
                 Some((v, found)) if *v == version => found.clone(),
                 _ => {
-                    let (found, n) = find(&path, &file);
+                    let (found, n) = match text {
+                        true => find(&path, &file),
+                        false => (Err(ReadError::NameNotText { file: file.clone() }), 0),
+                    };
                     bytes_read += n;
                     fresh = true;
                     cache.insert(file.clone(), (version, found.clone()));

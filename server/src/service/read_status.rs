@@ -21,6 +21,7 @@ pub fn read_status(name: &str, e: &ReadError) -> Status {
         | ReadError::Truncated { .. }
         | ReadError::NotARecording { .. }
         | ReadError::CutBeforeDescription { .. }
+        | ReadError::NameNotText { .. }
         | ReadError::UnsupportedVersion { .. } => Status::failed_precondition(text()),
     }
 }

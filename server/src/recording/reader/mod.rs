@@ -59,6 +59,11 @@ pub enum ReadError {
          replay or recover"
     )]
     CutBeforeDescription { file: String, end: u64 },
+    #[error(
+        "{file}: its name is not UTF-8 text (shown with � for the bytes that are not \
+         text), and recordings are named by text: rename it to list, replay or recover it"
+    )]
+    NameNotText { file: String },
     #[error("{file} is not a laparo recording: {message}")]
     NotARecording { file: String, message: String },
     #[error(

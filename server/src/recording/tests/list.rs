@@ -123,3 +123,29 @@ fn a_file_is_read_afresh_only_when_new_or_changed() {
     assert!(fresh(&lister), "changed");
     assert!(!fresh(&lister), "unchanged again");
 }
+
+#[cfg(unix)]
+#[test]
+fn a_file_whose_name_is_not_text_is_listed_as_unreadable_once_a_version() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = temp();
+    let d = dir.path();
+    let mut script = Script::new();
+    // A recording renamed to a name with a byte that is not UTF-8.
+    let path = d.join(std::ffi::OsStr::from_bytes(b"caf\xe9.mcap"));
+    let mut sink = McapSink::create(&path, &script.header(SystemTime::now())).unwrap();
+    sink.write_frame(&script.tick(0), SystemTime::now())
+        .unwrap();
+    drop(sink.finish().unwrap());
+    let lister = Lister::new();
+    let listed = |lister: &Lister| lister.list_at_most(d, 10, |_| false).unwrap().0;
+    let first = listed(&lister);
+    assert_eq!(first.len(), 1);
+    assert_eq!(first[0].file, "caf\u{FFFD}.mcap");
+    let e = first[0].entry.as_ref().unwrap_err();
+    assert!(matches!(e, ReadError::NameNotText { .. }), "{e}");
+    assert!(e.to_string().contains("rename it"), "{e}");
+    // Nothing of the file is read, and it is told once, as any unreadable file.
+    assert_eq!((first[0].bytes_read, first[0].fresh), (0, true));
+    assert!(!listed(&lister)[0].fresh);
+}
