@@ -165,6 +165,38 @@ fn the_demo_presses_the_liver_and_reports() {
     );
     let again = laparo(&["replay".as_ref(), recovered.as_os_str()]);
     assert!(again.contains("ticks"), "{again}");
+    // Recovering over another recording is refused unless asked, and the file is
+    // left as it was.
+    let kept = std::fs::read(&path).unwrap();
+    let over = |replace: bool| {
+        let mut args = vec![
+            "recordings".as_ref(),
+            "recover".as_ref(),
+            cut.as_os_str(),
+            "--out".as_ref(),
+            path.as_os_str(),
+        ];
+        if replace {
+            args.push("--replace".as_ref());
+        }
+        Command::new(env!("CARGO_BIN_EXE_laparo"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let refused = over(false);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("it exists and is not the file recovered"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&path).unwrap(), kept);
+    assert!(over(true).status.success());
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        std::fs::read(&recovered).unwrap()
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -12,7 +12,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use laparo_proto::v1;
-use laparo_server::recording::{ReadError, Recording, recover, resimulate};
+use laparo_server::recording::{Existing, ReadError, Recording, recover, resimulate};
 use tokio::sync::mpsc;
 use tokio_stream::wrappers::ReceiverStream;
 
@@ -137,7 +137,7 @@ async fn a_killed_server_leaves_a_file_readable_to_the_last_second_and_recoverab
     assert!(!partial.is_complete());
 
     let fixed = dir.path().join("recovered.mcap");
-    let recovery = recover(&file, &fixed).unwrap();
+    let recovery = recover(&file, &fixed, Existing::Refuse).unwrap();
     assert!(recovery.messages > 0, "{recovery:?}");
     let rec = Recording::open(&fixed).unwrap();
     let surfaces = rec.surfaces().unwrap();

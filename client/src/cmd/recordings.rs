@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use clap::Subcommand;
 use laparo_proto::text::printable;
 use laparo_server::recording::recover::lost;
-use laparo_server::recording::{FileState, list, recover};
+use laparo_server::recording::{Existing, FileState, list, recover};
 
 use super::BoxError;
 use super::args::RemoteArgs;
@@ -41,6 +41,10 @@ pub enum RecordingsCommand {
         /// Where to write the recovered file [default: over FILE].
         #[arg(long, value_name = "OUT")]
         out: Option<PathBuf>,
+        /// Replace OUT if it is another file that exists (refused otherwise, so
+        /// that no other recording is lost by a mistyped name).
+        #[arg(long, requires = "out")]
+        replace: bool,
     },
 }
 
@@ -51,9 +55,13 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
             Some(server) => list_server(&server).await,
             None => list_dir(&dir),
         },
-        RecordingsCommand::Recover { file, out } => {
+        RecordingsCommand::Recover { file, out, replace } => {
             let out = out.unwrap_or_else(|| file.clone());
-            let r = recover(&file, &out)?;
+            let existing = match replace {
+                true => Existing::Replace,
+                false => Existing::Refuse,
+            };
+            let r = recover(&file, &out, existing)?;
             let lost = lost(&r);
             say!(
                 "{} → {}: {} chunks, {} messages kept ({} bytes); {}",

@@ -73,7 +73,7 @@ pub mod writer;
 pub use list::{FileState, Listed, Lister, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
 pub use recorder::{Item, Recorder, RecorderError, RecorderStats, Report};
-pub use recover::{RecoverError, Recovery, recover};
+pub use recover::{Existing, RecoverError, Recovery, recover};
 pub use resim::{
     MeshFiles, ResimError, ResimReport, Resimulation, Resimulator, Stepped, resimulate,
     resimulate_as,

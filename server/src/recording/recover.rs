@@ -107,14 +107,32 @@ pub enum RecoverError {
          left as it is"
     )]
     BeingRecorded { file: String },
+    /// The output is another file that exists, and replacing it was not asked for.
+    #[error(
+        "will not write the recovered recording over {file}: it exists and is not the file \
+         recovered; give another --out, or --replace to replace it"
+    )]
+    OutputExists { file: String },
+}
+
+/// What [`recover`] does with an output that exists and is not the input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Existing {
+    /// Refuse it ([`RecoverError::OutputExists`]): another recording there would
+    /// be lost without a word.
+    Refuse,
+    /// Replace it (a regular file not being recorded; the new file is renamed over
+    /// it, so a reader of the old one keeps reading it).
+    Replace,
 }
 
 /// Rewrites the recording `input` into a complete one at `output` (which may be
-/// `input`: the new file is written beside it and renamed over it).
+/// `input`: the new file is written beside it and renamed over it). Another file
+/// at `output` is replaced only if `existing` says so.
 ///
 /// The input is read a record at a time through a [`Source`] and each kept record
 /// is written at once, so memory holds one chunk whatever the file's size.
-pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
+pub fn recover(input: &Path, output: &Path, existing: Existing) -> Result<Recovery, RecoverError> {
     let file = input.display().to_string();
     let source = Source::open(input, Follow::Links).map_err(|source| RecoverError::Read {
         file: file.clone(),
@@ -138,7 +156,12 @@ pub fn recover(input: &Path, output: &Path) -> Result<Recovery, RecoverError> {
         Ok(_) if super::lock::path_being_written(output) => {
             return Err(RecoverError::BeingRecorded { file: out_name });
         }
-        Ok(_) => same_file(input, output),
+        Ok(_) => match same_file(input, output) {
+            false if existing == Existing::Refuse => {
+                return Err(RecoverError::OutputExists { file: out_name });
+            }
+            same => same,
+        },
         Err(_) => false,
     };
     let out = WholeFile::create(output)

@@ -29,7 +29,7 @@ fn a_file_cut_short_recovers_every_complete_chunk() {
             Err(ReadError::Truncated { .. })
         ));
         let fixed = dir.path().join(format!("fixed-{cut}.mcap"));
-        let report = recover(&cut_path, &fixed).unwrap();
+        let report = recover(&cut_path, &fixed, Existing::Refuse).unwrap();
         let got = raw_messages(&fixed);
         assert!(
             (at_least..=at_most).contains(&(got.len() as u64)),
@@ -49,7 +49,7 @@ fn a_file_cut_short_recovers_every_complete_chunk() {
     // A complete file recovers to the same messages, in place.
     let copy = dir.path().join("copy.mcap");
     std::fs::copy(&full, &copy).unwrap();
-    let report = recover(&copy, &copy).unwrap();
+    let report = recover(&copy, &copy, Existing::Refuse).unwrap();
     assert!(report.was_complete);
     assert_eq!(raw_messages(&copy), all);
 }
@@ -93,7 +93,7 @@ fn files_that_are_not_recordings_give_clear_errors() {
         Err(ReadError::NotMcap { .. })
     ));
     assert!(matches!(
-        recover(&text, &dir.path().join("x.mcap")),
+        recover(&text, &dir.path().join("x.mcap"), Existing::Refuse),
         Err(RecoverError::NotMcap { .. })
     ));
     let empty = write("empty.mcap", b"");
@@ -203,7 +203,12 @@ fn a_recovery_over_an_open_recording_leaves_it_reading_what_was_written() {
     // Recovering the cut copy over the open file renames a new file over it: the
     // open recording reads through its own handle, and still reads every tick as
     // written.
-    recover(&cut, &path).unwrap();
+    // Not without being asked: another recording there is not replaced.
+    let err = recover(&cut, &path, Existing::Refuse).unwrap_err();
+    assert!(matches!(err, RecoverError::OutputExists { .. }), "{err}");
+    assert!(err.to_string().contains("--replace"), "{err}");
+    assert_eq!(std::fs::read(&path).unwrap(), bytes);
+    recover(&cut, &path, Existing::Replace).unwrap();
     assert_eq!(rec.surfaces().unwrap(), before);
     // And the path now holds the shorter recovered recording.
     let now = Recording::open(&path).unwrap();
@@ -236,7 +241,7 @@ fn a_damaged_chunk_is_left_out_and_every_chunk_after_it_kept() {
     std::fs::write(&path, &damaged).unwrap();
 
     let out = dir.path().join("fixed.mcap");
-    let report = recover(&path, &out).unwrap();
+    let report = recover(&path, &out, Existing::Refuse).unwrap();
     assert!(report.was_complete);
     assert_eq!(report.damaged_chunks.len(), 1, "{report:?}");
     let at = format!("bytes {}..", chunk.chunk_start_offset);
@@ -252,7 +257,7 @@ fn a_damaged_chunk_is_left_out_and_every_chunk_after_it_kept() {
     assert!(Recording::open(&out).unwrap().is_complete());
 
     // In place, the damaged chunk would be lost for good: refused, file untouched.
-    let err = recover(&path, &path).unwrap_err();
+    let err = recover(&path, &path, Existing::Refuse).unwrap_err();
     assert!(matches!(err, RecoverError::WouldLose { .. }), "{err}");
     let text = err.to_string();
     assert!(
@@ -263,7 +268,7 @@ fn a_damaged_chunk_is_left_out_and_every_chunk_after_it_kept() {
     // A file cut short (what a killed server leaves) still recovers in place.
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..(b2 + 5) as usize]).unwrap();
-    let report = recover(&cut, &cut).unwrap();
+    let report = recover(&cut, &cut, Existing::Refuse).unwrap();
     assert!(!report.lost_more_than_a_tail(), "{report:?}");
     assert_eq!(raw_messages(&cut), all[..n2]);
 }
@@ -280,7 +285,7 @@ fn a_recovery_writes_only_a_regular_file_and_leaves_others_alone() {
     std::fs::write(&target, b"keep me").unwrap();
     std::os::unix::fs::symlink(&target, &link).unwrap();
     for (out, kind) in [(&outputs, "directory"), (&link, "symbolic link")] {
-        let err = recover(&good, out).unwrap_err();
+        let err = recover(&good, out, Existing::Refuse).unwrap_err();
         assert!(
             matches!(&err, RecoverError::OutputNotRegular { kind: k, .. } if *k == kind),
             "{err}"
@@ -294,7 +299,7 @@ fn a_recovery_writes_only_a_regular_file_and_leaves_others_alone() {
     let out = dir.path().join("fixed.mcap");
     let theirs = dir.path().join("fixed.mcap.part");
     std::fs::write(&theirs, b"mine").unwrap();
-    recover(&good, &out).unwrap();
+    recover(&good, &out, Existing::Refuse).unwrap();
     assert_eq!(std::fs::read(&theirs).unwrap(), b"mine");
     assert_eq!(raw_messages(&out), raw_messages(&good));
     let names: Vec<_> = std::fs::read_dir(dir.path())
@@ -360,7 +365,7 @@ fn a_file_cut_before_its_description_says_so_and_one_cut_after_reads() {
         let path = dir.path().join(format!("cut-{cut}.mcap"));
         std::fs::write(&path, &bytes[..cut as usize]).unwrap();
         assert!(matches!(
-            recover(&path, &dir.path().join("x.mcap")),
+            recover(&path, &dir.path().join("x.mcap"), Existing::Refuse),
             Err(RecoverError::NothingToRecover { .. })
         ));
     }

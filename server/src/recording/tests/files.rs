@@ -9,6 +9,7 @@ use std::time::SystemTime;
 
 use laparo_proto::v1;
 
+use crate::recording::Existing;
 use crate::recording::writer::{McapSink, SessionHeader, created};
 use crate::recording::{ReadError, Recording, RecoverError, recover};
 
@@ -123,7 +124,7 @@ fn a_junk_tail_is_left_out_and_every_complete_chunk_before_it_kept() {
             Err(ReadError::Truncated { .. })
         ));
         let out = dir.path().join(format!("{name}-fixed.mcap"));
-        let r = recover(&path, &out).unwrap();
+        let r = recover(&path, &out, Existing::Refuse).unwrap();
         assert_eq!(r.messages, 1 + 25, "{name}: the scene and every event");
         assert_eq!(r.bytes_dropped, tail.len() as u64, "{name}");
         let fixed = Recording::open(&out).unwrap();
@@ -149,7 +150,7 @@ fn a_file_with_nothing_recoverable_is_an_error_and_writes_nothing() {
         let path = dir.path().join(format!("{name}.mcap"));
         std::fs::write(&path, &content).unwrap();
         let out = dir.path().join(format!("{name}-fixed.mcap"));
-        let err = recover(&path, &out).unwrap_err();
+        let err = recover(&path, &out, Existing::Refuse).unwrap_err();
         assert!(
             matches!(err, RecoverError::NothingToRecover { .. }),
             "{name}: {err}"
@@ -157,7 +158,7 @@ fn a_file_with_nothing_recoverable_is_an_error_and_writes_nothing() {
         assert!(err.to_string().contains("nothing recoverable"), "{err}");
         assert!(!out.exists(), "{name}: an output was written");
         // Recovering in place leaves the file as it was.
-        assert!(recover(&path, &path).is_err());
+        assert!(recover(&path, &path, Existing::Refuse).is_err());
         assert_eq!(std::fs::read(&path).unwrap(), content, "{name}");
         let leftovers: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()

@@ -26,7 +26,7 @@ fn a_recording_being_written_is_not_recovered_and_is_listed_in_progress() {
     std::fs::write(&copy, &before).unwrap();
     assert!(!path_being_written(&copy));
     for (input, output) in [(&path, &path), (&path, &copy), (&copy, &path)] {
-        let err = recover(input, output).unwrap_err();
+        let err = recover(input, output, Existing::Refuse).unwrap_err();
         assert!(
             matches!(&err, RecoverError::BeingRecorded { file } if file == &path.display().to_string()),
             "{input:?} → {output:?}: {err}"
@@ -49,7 +49,7 @@ fn a_recording_being_written_is_not_recovered_and_is_listed_in_progress() {
     // and the recording is recovered like any file cut short.
     drop(sink);
     assert!(!path_being_written(&path));
-    let report = recover(&path, &path).unwrap();
+    let report = recover(&path, &path, Existing::Refuse).unwrap();
     assert!(report.messages > 0);
     assert!(Recording::open(&path).unwrap().is_complete());
 }
