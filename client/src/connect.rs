@@ -339,6 +339,15 @@ fn transport_failure(
     }
 }
 
+/// The port as written in the endpoint's URL (after any `user@`, and after the `]`
+/// of an IPv6 address); `None` when none is written.
+fn written_port(endpoint: &Endpoint) -> Option<&str> {
+    let authority = endpoint.uri().authority()?.as_str();
+    let host_end = authority.rfind([']', '@']).map_or(0, |i| i + 1);
+    let colon = host_end + authority[host_end..].rfind(':')?;
+    Some(&authority[colon + 1..]).filter(|port| !port.is_empty())
+}
+
 /// The endpoint for `config`: URL checked, keep-alive set, TLS configured for
 /// `https`. Nothing is connected yet.
 fn endpoint(config: &ConnectConfig) -> Result<Endpoint, ConnectError> {
@@ -347,6 +356,17 @@ fn endpoint(config: &ConnectConfig) -> Result<Endpoint, ConnectError> {
         url: url.clone(),
         reason: error_chain(&e),
     })?;
+    // The URI parser takes any digits after the host as a port (and then names no
+    // port at all); a TCP port is 1 to 65535, and dialling another fails as
+    // "connection refused", naming no cause.
+    if let Some(port) = written_port(&endpoint)
+        && !matches!(port.parse::<u16>(), Ok(1..))
+    {
+        return Err(ConnectError::InvalidUrl {
+            url: url.clone(),
+            reason: format!("port {port} is not a TCP port (1 to 65535)"),
+        });
+    }
     // The connect timeout also bounds reconnecting after a lost connection.
     let endpoint = endpoint
         .connect_timeout(config.connect_timeout)

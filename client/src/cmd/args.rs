@@ -156,13 +156,20 @@ pub fn plot_size(s: &str) -> Result<(u32, u32), String> {
 /// well within what `Duration` and `Instant` arithmetic hold).
 pub fn seconds(s: &str) -> Result<Duration, String> {
     let v = number(s)?;
-    if v.is_finite() && v > 0.0 && v < 1e9 {
-        Ok(Duration::from_secs_f64(v))
-    } else {
-        Err(format!(
+    if !(v.is_finite() && v > 0.0 && v < 1e9) {
+        return Err(format!(
             "{} s: a duration must be > 0 and below 1e9 s",
             Number(v)
-        ))
+        ));
+    }
+    // A duration is held in whole nanoseconds: a smaller one would be 0, and a
+    // timeout of 0 said as "within 0 s".
+    match Duration::from_secs_f64(v) {
+        d if d.is_zero() => Err(format!(
+            "{} s: a duration must be at least 1 ns (1e-9 s)",
+            Number(v)
+        )),
+        d => Ok(d),
     }
 }
 

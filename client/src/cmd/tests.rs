@@ -230,6 +230,10 @@ fn bad_values_are_usage_errors() {
             "1000000000 s: a duration must be > 0 and below 1e9 s",
         ),
         (&["--seconds", "1e300"], "1e300 s: a duration must be"),
+        (
+            &["--seconds", "1e-300"],
+            "1e-300 s: a duration must be at least 1 ns (1e-9 s)",
+        ),
     ] {
         let args: Vec<&str> = base.iter().chain(bad).copied().collect();
         let e = parse(&args).unwrap_err();

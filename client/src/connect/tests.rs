@@ -26,6 +26,20 @@ async fn urls_are_checked_before_connecting() {
         bad("not a url").await,
         ConnectError::InvalidUrl { .. }
     ));
+    for (url, port) in [
+        ("http://127.0.0.1:99999", "99999"),
+        ("http://127.0.0.1:0", "0"),
+        ("http://localhost:65536/", "65536"),
+        ("http://[::1]:70000", "70000"),
+    ] {
+        let e = bad(url).await;
+        assert!(matches!(e, ConnectError::InvalidUrl { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .ends_with(&format!("port {port} is not a TCP port (1 to 65535)")),
+            "{e}"
+        );
+    }
     let mut c = ConnectConfig::new("https://127.0.0.1:1");
     c.ca_file = Some("/nonexistent/ca.pem".into());
     let e = connect(&c).await.unwrap_err();
