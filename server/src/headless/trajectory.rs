@@ -20,6 +20,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use laparo_proto::text::Number;
 use nalgebra::{Point3, Unit, Vector3};
 
 use crate::engine::contact::MAX_INSTRUMENTS;
@@ -133,13 +134,14 @@ impl Trajectory {
             }
             let t = num[0];
             if t < 0.0 {
-                return Err(err(line, format!("time {t} is negative")));
+                return Err(err(line, format!("time {} is negative", Number(t))));
             }
             if t > super::MAX_RUN_SECONDS {
                 return Err(err(
                     line,
                     format!(
-                        "time {t:e} s is beyond the {:e} s a run may last",
+                        "time {} s is beyond the {:e} s a run may last",
+                        Number(t),
                         super::MAX_RUN_SECONDS
                     ),
                 ));
@@ -148,7 +150,12 @@ impl Trajectory {
             if tip.coords.amax() > ABSURD_DISTANCE {
                 return Err(err(
                     line,
-                    format!("tip {tip} is more than {ABSURD_DISTANCE} m from the origin"),
+                    format!(
+                        "tip ({}, {}, {}) is more than {ABSURD_DISTANCE} m from the origin",
+                        Number(tip.x),
+                        Number(tip.y),
+                        Number(tip.z)
+                    ),
                 ));
             }
             let axis = unit_axis(Vector3::new(num[4], num[5], num[6]))
@@ -396,6 +403,25 @@ mod tests {
             Trajectory::parse(&eight, "t.csv").unwrap().tracks.len(),
             MAX_INSTRUMENTS
         );
+    }
+
+    #[test]
+    fn out_of_range_numbers_are_echoed_short() {
+        // Written in full, each of these is over 300 digits.
+        for (row, said) in [
+            ("-1e300, left, 0, 0, 0, 0, 0, 1", "time -1e300 is negative"),
+            (
+                "1e300, left, 0, 0, 0, 0, 0, 1",
+                "time 1e300 s is beyond the",
+            ),
+            (
+                "0, left, 1e300, 0, -2.5e299, 0, 0, 1",
+                "tip (1e300, 0, -2.5e299) is more than",
+            ),
+        ] {
+            let e = Trajectory::parse(row, "t.csv").unwrap_err().to_string();
+            assert!(e.contains(said) && e.len() < 200, "{row}: {e}");
+        }
     }
 
     #[test]

@@ -6,6 +6,8 @@
 
 use std::fmt;
 
+use laparo_proto::text::Number;
+
 /// A mesh that could not be loaded: the file (`source`), the 1-based line where the
 /// fault is (when one line is to blame), and what is wrong.
 ///
@@ -84,8 +86,8 @@ pub enum MeshErrorKind {
     /// A tetrahedron with (numerically) zero volume: its orientation, and so its
     /// stiffness, is undefined.
     #[error(
-        "element {element} is a flat tetrahedron: |6V| = {six_volume:e} is at most \
-         1e-12 × (longest edge {longest_edge:e})³"
+        "element {element} is a flat tetrahedron: |6V| = {} is at most \
+         1e-12 × (longest edge {})³", Number(*six_volume), Number(*longest_edge)
     )]
     DegenerateTet {
         element: u64,
@@ -97,7 +99,7 @@ pub enum MeshErrorKind {
     /// stiffness cannot be computed.
     #[error(
         "element {element} is too large to compute with: its corners reach a \
-         coordinate of {largest:e}, and its edge lengths overflow"
+         coordinate of {}, and its edge lengths overflow", Number(*largest)
     )]
     OversizedTet { element: u64, largest: f64 },
     /// After orientation was normalised, two tetrahedra that share a face lie on the same

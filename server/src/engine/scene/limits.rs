@@ -18,6 +18,8 @@
 //! **Finite time.** The work of one tick is bounded by [`MAX_TICK_WORK`]; the
 //! integrator also stops between substeps or iterations when its session closes.
 
+use laparo_proto::text::Number;
+
 use super::{Scene, SceneError};
 use crate::engine::integrate::{Integrator, IntegratorKind};
 use crate::engine::mesh::TetMesh;
@@ -114,9 +116,10 @@ impl Scene {
             return Err(self.invalid(
                 "mesh.scale",
                 format!(
-                    "the scaled mesh reaches {far:e} m from the origin; at most \
+                    "the scaled mesh reaches {} m from the origin; at most \
                      {MAX_COORDINATE_M} m: check mesh.scale (metres per mesh unit) or set \
-                     mesh.center"
+                     mesh.center",
+                    Number(far)
                 ),
             ));
         }
@@ -125,8 +128,9 @@ impl Scene {
             return Err(self.invalid(
                 "mesh.scale",
                 format!(
-                    "the scaled mesh is {size:e} m across; at least {MIN_MESH_SIZE_M} m: \
-                     check mesh.scale (metres per mesh unit)"
+                    "the scaled mesh is {} m across; at least {MIN_MESH_SIZE_M} m: \
+                     check mesh.scale (metres per mesh unit)",
+                    Number(size)
                 ),
             ));
         }

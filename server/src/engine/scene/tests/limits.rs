@@ -129,6 +129,24 @@ fn a_mesh_scaled_beyond_the_stated_sizes_is_refused() {
         "mesh.scale",
         &format!("at least {MIN_MESH_SIZE_M} m"),
     );
+    // The size found is echoed as a number reads back (`Number`): in plain
+    // decimals where that is short, "12.5 m" and not "1.25e1 m".
+    for (scale, said) in [("scale = 1e300", "reaches "), ("scale = 1e-300", "is ")] {
+        let e = build(&MINIMAL.replace("scale = 0.03", scale))
+            .unwrap_err()
+            .to_string();
+        let number = e.split(said).nth(1).and_then(|r| r.split(" m").next());
+        let number = number.unwrap_or_else(|| panic!("{e}"));
+        assert!(number.parse::<f64>().is_ok() && number.len() <= 24, "{e}");
+    }
+    let e = build(&MINIMAL.replace("scale = 0.03", "scale = 1000"))
+        .unwrap_err()
+        .to_string();
+    let far = e
+        .split("reaches ")
+        .nth(1)
+        .and_then(|r| r.split(" m").next());
+    assert!(far.is_some_and(|f| !f.contains('e')), "{e}");
 }
 
 #[test]
