@@ -197,6 +197,25 @@ fn the_demo_presses_the_liver_and_reports() {
         std::fs::read(&path).unwrap(),
         std::fs::read(&recovered).unwrap()
     );
+    // A scene given to resim that does not parse is named by its own file and line,
+    // not by the recorded scene's name.
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "name = \"x\"\n[mesh\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+        .args([
+            "resim".as_ref(),
+            path.as_os_str(),
+            "--scene".as_ref(),
+            bad.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("{}:2:", bad.display())) && !stderr.contains("default:"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

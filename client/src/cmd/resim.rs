@@ -37,6 +37,8 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
             .map_err(|e| format!("cannot read {}: {e}", scene.display()))?;
         meta.scene_toml = String::from_utf8(bytes)
             .map_err(|e| format!("{} is not UTF-8 text: {e}", scene.display()))?;
+        // The scene's errors name this file, not the recorded scene.
+        meta.scene = scene.display().to_string();
         // A bare file name's folder is the working one (its parent is empty).
         meta.scene_dir = scene
             .parent()
