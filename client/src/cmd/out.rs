@@ -93,6 +93,30 @@ pub fn line(args: fmt::Arguments<'_>) {
     }
 }
 
+/// A log writer that writes each record as [`printable`] text: the tracing
+/// subscriber formats a record (which may quote a server's text or a path) into
+/// one buffer and writes it here at once, so escaping the buffer, but for the
+/// newlines that end its lines, escapes every record. Colours are off for this
+/// writer (their escape sequences would be written escaped).
+pub struct EscapedLog<W: Write>(pub W);
+
+impl<W: Write> Write for EscapedLog<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let text = String::from_utf8_lossy(buf);
+        for (k, line) in text.split('\n').enumerate() {
+            if k > 0 {
+                self.0.write_all(b"\n")?;
+            }
+            self.0.write_all(printable(line).as_bytes())?;
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.0.flush()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,6 +148,17 @@ mod tests {
         assert_eq!(
             String::from_utf8(buffer).unwrap(),
             "joining session s1\\u{1b}]0;PWN\\u{7}\\u{1b}[2J\n"
+        );
+    }
+
+    #[test]
+    fn a_log_record_is_written_escaped_but_for_its_line_ends() {
+        let mut log = EscapedLog(Vec::new());
+        log.write_all(b"WARN lost: \x1b[2Jgone\tnow\n").unwrap();
+        log.write_all(b"two\nlines \xff\n").unwrap();
+        assert_eq!(
+            String::from_utf8(log.0).unwrap(),
+            "WARN lost: \\u{1b}[2Jgone\\tnow\ntwo\nlines \u{FFFD}\n"
         );
     }
 }

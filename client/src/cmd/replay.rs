@@ -144,7 +144,7 @@ pub(crate) fn open_recording(path: &Path) -> Result<Recording, BoxError> {
             "note: {} ends without its summary (a killed server, or still being recorded); \
              read up to its last complete chunk. `laparo recordings recover` rewrites it \
              into a complete file.",
-            path.display(),
+            printable(&path.display().to_string()),
         );
     }
     Ok(recording)
