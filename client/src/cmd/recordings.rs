@@ -81,6 +81,9 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
                     )
                 }
             );
+            for schema in &r.damaged_schemas {
+                say!("  damaged {schema}");
+            }
             Ok(())
         }
     }

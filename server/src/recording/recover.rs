@@ -11,6 +11,9 @@
 //! that does not match, data that does not decompress) is left out and the walk
 //! goes on after it, since its stated length still frames the records that follow;
 //! messages of a channel that only such a chunk declared are left out too.
+//! Schema records, written outside chunks with no CRC, are checked by decoding
+//! them; a damaged one is written from this build's descriptors and reported
+//! ([`Recovery::damaged_schemas`]).
 //! A file with nothing recoverable (no `laparo.scene` metadata before the damage:
 //! junk after the magic, a file cut inside its first chunk) is an error
 //! ([`RecoverError::NothingToRecover`]), and no file is written.
@@ -23,10 +26,13 @@
 //! anything of a file that had its footer), the input is left as it is and the
 //! recovery must be written elsewhere ([`RecoverError::WouldLose`]).
 
+use std::borrow::Cow;
 use std::collections::HashSet;
 use std::io::{Seek, Write};
 use std::path::Path;
 
+use foxglove::Encode;
+use foxglove::schemas::SceneUpdate;
 use mcap::records::Record;
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
 
@@ -55,6 +61,9 @@ pub struct Recovery {
     pub damaged_chunks: Vec<String>,
     /// Messages left out because their channel was declared only in a damaged chunk.
     pub orphaned_messages: u64,
+    /// Schema records whose data was damaged, each with what was done about it
+    /// ([`checked_schema`]).
+    pub damaged_schemas: Vec<String>,
 }
 
 impl Recovery {
@@ -304,6 +313,7 @@ fn recover_source<W: Write + Seek>(
             match keep(w, &mut known, record).map_err(write)? {
                 Kept::Message => recovery.messages += 1,
                 Kept::Orphan => recovery.orphaned_messages += 1,
+                Kept::DamagedSchema(what) => recovery.damaged_schemas.push(what),
                 Kept::Other => {}
             }
         }
@@ -338,7 +348,50 @@ enum Kept {
     Message,
     /// A message (or a channel) whose channel (or schema) was never written.
     Orphan,
+    /// A schema whose data was damaged, with what was done about it.
+    DamagedSchema(String),
     Other,
+}
+
+/// A schema record's data, checked. Schema records are written outside chunks,
+/// with no CRC, so damage to one would go unseen: laparo's own reader decodes
+/// with the types it was built with, but a generic MCAP reader (Foxglove) decodes
+/// each channel with its schema. A `protobuf` schema must decode as a
+/// FileDescriptorSet that defines the message it names; one that does not is
+/// replaced by this build's descriptors of that name when this build has them
+/// (laparo's, foxglove's `SceneUpdate`) and kept as found otherwise. The second
+/// value says which, for the report; `None` for a sound schema or another
+/// encoding.
+fn checked_schema<'a>(
+    name: &str,
+    encoding: &str,
+    data: &'a [u8],
+) -> (Cow<'a, [u8]>, Option<String>) {
+    let defines = |data: &[u8]| {
+        prost_reflect::DescriptorPool::decode(data)
+            .is_ok_and(|pool| pool.get_message_by_name(name).is_some())
+    };
+    if encoding != "protobuf" || defines(data) {
+        return (Cow::Borrowed(data), None);
+    }
+    let foxglove = SceneUpdate::get_schema().filter(|s| s.name == name);
+    let own = match foxglove {
+        Some(schema) => Some(schema.data.into_owned()),
+        None => Some(laparo_proto::FILE_DESCRIPTOR_SET.to_vec()).filter(|d| defines(d)),
+    };
+    match own {
+        Some(own) => (
+            Cow::Owned(own),
+            Some("its data does not define the message; written from this build's".into()),
+        ),
+        None => (
+            Cow::Borrowed(data),
+            Some(
+                "its data does not define the message; kept as found (this build does not know it)"
+                    .into(),
+            ),
+        ),
+    }
 }
 
 /// Writes the records worth carrying over (schemas, channels with their ids,
@@ -350,8 +403,15 @@ fn keep<W: Write + Seek>(
 ) -> Result<Kept, McapError> {
     match record {
         Record::Schema { header, data } => {
+            let (data, damage) = checked_schema(&header.name, &header.encoding, &data);
             writer.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
             known.schemas.insert(header.id);
+            if let Some(what) = damage {
+                return Ok(Kept::DamagedSchema(format!(
+                    "schema {} `{}`: {what}",
+                    header.id, header.name
+                )));
+            }
         }
         Record::Channel(c) => {
             // Schema id 0: a channel without a schema.

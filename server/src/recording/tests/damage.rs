@@ -376,3 +376,44 @@ fn a_file_cut_before_its_description_says_so_and_one_cut_after_reads() {
         assert_eq!(rec.meta().session_id, "s7");
     }
 }
+
+#[test]
+fn a_damaged_schema_is_reported_and_written_sound() {
+    let dir = temp();
+    let good = dir.path().join("good.mcap");
+    record_script(&good, 6);
+    // Schema records are written outside chunks, with no CRC: damage the data of
+    // the first (laparo's descriptor set) so that it no longer decodes.
+    let mut bytes = std::fs::read(&good).unwrap();
+    let own = laparo_proto::FILE_DESCRIPTOR_SET;
+    let at = bytes
+        .windows(64)
+        .position(|w| w == &own[..64])
+        .expect("the descriptor set is in the file");
+    bytes[at..at + 16].fill(0xFF);
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, &bytes).unwrap();
+    let out = dir.path().join("fixed.mcap");
+    let report = recover(&bad, &out, Existing::Refuse).unwrap();
+    assert_eq!(report.damaged_schemas.len(), 1, "{report:?}");
+    assert!(
+        report.damaged_schemas[0].contains("written from this build's"),
+        "{report:?}"
+    );
+    // Nothing is lost, so the same recovery may be done in place.
+    assert!(!report.lost_more_than_a_tail());
+    assert_eq!(raw_messages(&out), raw_messages(&good));
+    // Every schema of the recovered file defines the message it names.
+    let summary = Recording::open(&out).unwrap().mcap_summary().clone();
+    for schema in summary.schemas.values() {
+        let pool = prost_reflect::DescriptorPool::decode(&schema.data[..]).unwrap();
+        assert!(
+            pool.get_message_by_name(&schema.name).is_some(),
+            "{}",
+            schema.name
+        );
+    }
+    // A sound file reports none.
+    let again = recover(&good, &dir.path().join("again.mcap"), Existing::Refuse).unwrap();
+    assert!(again.damaged_schemas.is_empty(), "{again:?}");
+}
