@@ -124,17 +124,12 @@ fn the_demo_presses_the_liver_and_reports() {
     assert!(lane > 100, "{lane} pixels of the contact lane");
     // A path that cannot be written: a clear error, exit status 1.
     let bad = dir.join("no-such-dir").join("forces.png");
-    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
-        .args([
-            "replay".as_ref(),
-            path.as_os_str(),
-            "--plot".as_ref(),
-            bad.as_os_str(),
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let stderr = fails(&[
+        "replay".as_ref(),
+        path.as_os_str(),
+        "--plot".as_ref(),
+        bad.as_os_str(),
+    ]);
     assert!(
         stderr.contains(&format!("cannot plot to {}", bad.display()))
             && stderr.contains("No such file or directory"),
@@ -168,31 +163,20 @@ fn the_demo_presses_the_liver_and_reports() {
     // Recovering over another recording is refused unless asked, and the file is
     // left as it was.
     let kept = std::fs::read(&path).unwrap();
-    let over = |replace: bool| {
-        let mut args = vec![
-            "recordings".as_ref(),
-            "recover".as_ref(),
-            cut.as_os_str(),
-            "--out".as_ref(),
-            path.as_os_str(),
-        ];
-        if replace {
-            args.push("--replace".as_ref());
-        }
-        Command::new(env!("CARGO_BIN_EXE_laparo"))
-            .args(args)
-            .output()
-            .unwrap()
-    };
-    let refused = over(false);
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    let over = [
+        "recordings".as_ref(),
+        "recover".as_ref(),
+        cut.as_os_str(),
+        "--out".as_ref(),
+        path.as_os_str(),
+    ];
+    let stderr = fails(&over);
     assert!(
         stderr.contains("it exists and is not the file recovered"),
         "{stderr}"
     );
     assert_eq!(std::fs::read(&path).unwrap(), kept);
-    assert!(over(true).status.success());
+    laparo(&[&over[..], &["--replace".as_ref()]].concat());
     assert_eq!(
         std::fs::read(&path).unwrap(),
         std::fs::read(&recovered).unwrap()
@@ -201,17 +185,12 @@ fn the_demo_presses_the_liver_and_reports() {
     // not by the recorded scene's name.
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "name = \"x\"\n[mesh\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
-        .args([
-            "resim".as_ref(),
-            path.as_os_str(),
-            "--scene".as_ref(),
-            bad.as_os_str(),
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let stderr = fails(&[
+        "resim".as_ref(),
+        path.as_os_str(),
+        "--scene".as_ref(),
+        bad.as_os_str(),
+    ]);
     assert!(
         stderr.contains(&format!("{}:2:", bad.display())) && !stderr.contains("default:"),
         "{stderr}"
@@ -251,4 +230,15 @@ fn a_demo_that_cannot_record_fails_and_names_no_recording() {
     assert!(!stdout.contains("compression stream"), "{stdout}");
     assert!(stderr.contains("the session was not recorded"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Runs `laparo` with `args`, which must fail with exit status 1; its stderr.
+fn fails(args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+        .args(args)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    stderr
 }
