@@ -53,8 +53,9 @@ pub async fn run(args: LoadArgs) -> Result<(), BoxError> {
         record: args.record,
     };
     say!(
-        "load: {} stations for {:.1} s at {}; the first ones (one per free instrument) send poses at {} Hz, the others only receive",
+        "load: {} station{} for {:.1} s at {}; the first ones (one per free instrument) send poses at {} Hz, the others only receive",
         args.stations,
+        if args.stations == 1 { "" } else { "s" },
         args.seconds.as_secs_f64(),
         args.server.server,
         args.pose_rate

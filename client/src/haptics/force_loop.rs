@@ -90,7 +90,10 @@ impl ForceLoopConfig {
 
 /// A configuration field out of range.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-#[error("force loop configuration: {field} = {value} is out of range (expected {expected})")]
+#[error(
+    "force loop configuration: {field} = {} is out of range (expected {expected})",
+    laparo_proto::text::Number(*value)
+)]
 pub struct ConfigError {
     /// The field, as named in [`ForceLoopConfig`].
     pub field: &'static str,

@@ -103,6 +103,13 @@ fn config_rejects_out_of_range_fields_by_name() {
         let device = ScriptedDevice::fixed(Point3::origin(), Vector3::z_axis(), 1.0, 1);
         assert!(ForceLoop::new(config, device).is_err());
     }
+    // A value far out of range is echoed short, not in its 301 digits.
+    let huge = ForceLoopConfig {
+        transition_s: -1e300,
+        ..ok
+    };
+    let e = huge.validate().unwrap_err().to_string();
+    assert!(e.contains("transition_s = -1e300 is out of range"), "{e}");
 }
 
 #[test]
