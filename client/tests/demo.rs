@@ -205,13 +205,13 @@ fn a_demo_that_cannot_record_fails_and_names_no_recording() {
     let file = dir.join("a-file");
     std::fs::write(&file, b"not a folder").unwrap();
     // A file as the folder: refused before the demo starts.
-    let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
-        .args(["demo", "--seconds", "0.5", "--recordings"])
-        .arg(&file)
-        .output()
-        .expect("laparo runs");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let stderr = fails(&[
+        "demo".as_ref(),
+        "--seconds".as_ref(),
+        "0.5".as_ref(),
+        "--recordings".as_ref(),
+        file.as_os_str(),
+    ]);
     assert!(stderr.contains("not a folder"), "{stderr}");
     // A folder inside that file cannot be made: the demo runs, the recorder fails,
     // and the run ends saying the session was not recorded, naming the cause.
