@@ -31,7 +31,7 @@ use laparo_server::engine::contact::contact_normal;
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
-use laparo_tests::coupled::{Coupled, front_probe, reaction_history};
+use laparo_tests::coupled::{self, front_probe, probed, reaction_history};
 use nalgebra::{Point3, Unit, Vector3};
 
 const HAPTIC_HZ: f64 = 1000.0;
@@ -78,21 +78,14 @@ fn refine() -> u32 {
     *REFINE.get_or_init(|| argument("--refine", "a count, 0 to 3").unwrap_or(0))
 }
 
+/// The default scene on the chosen liver, settled ([`coupled::settled`]).
 fn settled(rate_hz: f64, kind: ForceModelKind) -> Simulation {
     let mut scene = Scene::default_scene();
     if let Some(file) = mesh_file() {
         scene.mesh.file = file.to_string();
     }
     scene.mesh.refine = refine();
-    scene.mechanics.rate_hz = rate_hz;
-    scene.force_model.kind = kind;
-    let mut sim = scene
-        .build()
-        .expect("the default scene builds on the chosen liver");
-    for _ in 0..rate_hz.round() as usize {
-        sim.tick();
-    }
-    sim
+    coupled::settled(scene, rate_hz, kind)
 }
 
 fn haptic_ticks() -> usize {
@@ -194,14 +187,16 @@ fn coupled(probe: &Probe, rate_hz: f64, kind: ForceModelKind, truth: &[Vector3<f
     let mut cpu = Vec::new();
     let mut row = None;
     for _ in 0..REPEATS {
-        let sim = settled(rate_hz, kind);
-        let device = ScriptedDevice::new(probe.trajectory(), 1e3, haptic_ticks());
-        let mut c = Coupled::new(sim, device, HAPTIC_HZ);
         let mut engine = 0.0;
-        for f in truth.iter().take(haptic_ticks()) {
-            c.step();
-            engine += (c.sim.instruments[0].report.reaction - f).norm_squared();
-        }
+        let c = probed(
+            settled(rate_hz, kind),
+            probe,
+            HAPTIC_HZ,
+            haptic_ticks(),
+            |c, j| {
+                engine += (c.sim.instruments[0].report.reaction - truth[j]).norm_squared();
+            },
+        );
         cpu.push(c.server_seconds / PROBE_SECONDS);
         let squares: Vec<f64> = c
             .haptics
@@ -481,13 +476,10 @@ fn loop_on_its_thread() {
 /// rendered force (calibrated model) every 50 ms, to see where the error comes from.
 fn trace(probe: &Probe, rate_hz: f64, truth: &[Vector3<f64>]) {
     let sim = settled(rate_hz, ForceModelKind::Calibrated);
-    let device = ScriptedDevice::new(probe.trajectory(), 1e3, haptic_ticks());
-    let mut c = Coupled::new(sim, device, HAPTIC_HZ);
     let mut reaction = Vec::with_capacity(haptic_ticks());
-    for _ in 0..haptic_ticks() {
-        c.step();
-        reaction.push(c.sim.instruments[0].report.reaction);
-    }
+    let c = probed(sim, probe, HAPTIC_HZ, haptic_ticks(), |c, _| {
+        reaction.push(c.sim.instruments[0].report.reaction)
+    });
     println!(
         "| t s | reference N | engine at {rate_hz} Hz N | rendered N | rendered − reference N |"
     );

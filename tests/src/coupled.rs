@@ -3,8 +3,12 @@
 use std::time::Instant;
 
 use laparo_client::gestures::Probe;
-use laparo_client::haptics::{ForceLoop, ForceLoopConfig, HapticDevice, ModelInbox, PoseOutbox};
+use laparo_client::haptics::{
+    ForceLoop, ForceLoopConfig, HapticDevice, ModelInbox, PoseOutbox, ScriptedDevice,
+};
 use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::local_model::ForceModelKind;
+use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::Vector3;
 
@@ -103,6 +107,37 @@ impl<D: HapticDevice> Coupled<D> {
             self.step();
         }
     }
+}
+
+/// `scene` with its mechanics at `rate_hz` and force model `kind`, built and settled
+/// under gravity for 1 s with its instruments away: where the probes start.
+pub fn settled(mut scene: Scene, rate_hz: f64, kind: ForceModelKind) -> Simulation {
+    scene.mechanics.rate_hz = rate_hz;
+    scene.force_model.kind = kind;
+    let mut sim = scene.build().expect("the probed scene builds");
+    for _ in 0..rate_hz.round() as usize {
+        sim.tick();
+    }
+    sim
+}
+
+/// Instrument 0 of `sim` driven along `probe` by a scripted device through a force
+/// loop at `haptic_hz` for `ticks` haptic ticks, the device keeping every force it
+/// was sent; `each(coupled, j)` sees the pair after haptic tick `j`.
+pub fn probed(
+    sim: Simulation,
+    probe: &Probe,
+    haptic_hz: f64,
+    ticks: usize,
+    mut each: impl FnMut(&Coupled<ScriptedDevice>, usize),
+) -> Coupled<ScriptedDevice> {
+    let device = ScriptedDevice::new(probe.trajectory(), 1e3, ticks);
+    let mut c = Coupled::new(sim, device, haptic_hz);
+    for j in 0..ticks {
+        c.step();
+        each(&c, j);
+    }
+    c
 }
 
 /// A [`Probe`] of the front face of `sim`'s liver (as it is now) near its middle, by

@@ -8,7 +8,7 @@ use laparo_client::haptics::{HandDevice, HandParams, ScriptedDevice};
 use laparo_server::engine::local_model::ForceModelKind;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::simulation::Simulation;
-use laparo_tests::coupled::{Coupled, front_probe};
+use laparo_tests::coupled::{self, Coupled, front_probe};
 
 const HAPTIC_HZ: f64 = 1000.0;
 
@@ -17,14 +17,8 @@ const HAPTIC_HZ: f64 = 1000.0;
 fn settled(e: f64, rate_hz: f64, kind: ForceModelKind, footprint: bool) -> Simulation {
     let mut scene = Scene::default_scene();
     scene.material.young_modulus = e;
-    scene.mechanics.rate_hz = rate_hz;
-    scene.force_model.kind = kind;
     scene.contact.footprint = footprint;
-    let mut sim = scene.build().unwrap();
-    for _ in 0..rate_hz.round() as usize {
-        sim.tick();
-    }
-    sim
+    coupled::settled(scene, rate_hz, kind)
 }
 
 /// Probing for 4 s — press, hold, slide, hold, withdraw, about 240 model updates at
