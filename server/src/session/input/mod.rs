@@ -2,6 +2,7 @@
 //! thread through a latest-value slot per instrument.
 
 use laparo_proto::force::wire;
+use laparo_proto::text::Number;
 use laparo_proto::v1;
 use laparo_proto::v1::ErrorCode;
 use nalgebra::Point3;
@@ -68,6 +69,12 @@ impl Workspace {
     }
 }
 
+/// `(x, y, z)`, each coordinate short whatever the number a station sent
+/// ([`Number`]: `1e300`, not 301 digits).
+fn written(p: &Point3<f64>) -> String {
+    format!("({}, {}, {})", Number(p.x), Number(p.y), Number(p.z))
+}
+
 /// Checks a device pose: a pose that is there and finite, a unit axis (within
 /// [`wire::UNIT_TOLERANCE`]), a tip inside the workspace, a sequence number above the
 /// last accepted one.
@@ -82,12 +89,10 @@ pub fn check_pose(
         return Err(Rejection::new(
             ErrorCode::OutOfWorkspace,
             format!(
-                "tip ({}, {}, {}) m is outside the workspace [{:?} .. {:?}]",
-                tip.x,
-                tip.y,
-                tip.z,
-                workspace.min.coords.as_slice(),
-                workspace.max.coords.as_slice()
+                "tip {} m is outside the workspace {} .. {} m",
+                written(&tip),
+                written(&workspace.min),
+                written(&workspace.max)
             ),
         ));
     }

@@ -59,6 +59,13 @@ fn bad_poses_are_rejected_with_their_code() {
         code(&pose([1e300, 0.0, 0.0], [0.0, 0.0, 1.0], 1), None),
         ErrorCode::OutOfWorkspace
     );
+    // The echo stays short whatever the numbers (plain `{}` wrote 1e300 in 301
+    // digits and -1e-300 with 300 zeros).
+    let far = check_pose(&pose([1e300, -1e-300, 0.09], [0.0, 0.0, 1.0], 1), &w, None);
+    assert_eq!(
+        far.unwrap_err().message,
+        "tip (1e300, -1e-300, 0.09) m is outside the workspace (-1, -1, -1) .. (1, 1, 1) m"
+    );
     assert_eq!(
         code(&pose([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 4), Some(4)),
         ErrorCode::OutOfOrder
