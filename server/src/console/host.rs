@@ -31,8 +31,9 @@
 //! - requests without `Origin`. Native gRPC clients (tonic, grpcurl, the
 //!   `laparo` client) send none: they name the host they were given, not a page's,
 //!   so a DNS answer cannot turn them against the server.
-//! - `GET` and `HEAD`: the console's assets, which hold no secret and do nothing
-//!   (every call is a `POST`). A browser sends `Origin` with some of them (the
+//! - `GET` and `HEAD` but in a gRPC content type: the console's assets, which
+//!   hold no secret and do nothing (every call of a browser is a `POST`; tonic
+//!   serves a call whatever its method, so one sent as `GET` is checked). A browser sends `Origin` with some of them (the
 //!   page's module script is fetched in CORS mode even from its own origin), so
 //!   checking them left a page opened by a refused name blank, with nothing to say
 //!   why; served, the page loads and shows its first call's refusal.
@@ -100,14 +101,18 @@ pub fn parse_host(text: &str) -> Option<Host> {
         return Some(Host::Ip(IpAddr::V4(ip)));
     }
     let label = |l: &str| {
-        !l.is_empty()
+        (1..=MAX_LABEL).contains(&l.len())
             && l.bytes()
                 .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
     };
-    name.split('.')
-        .all(label)
+    (name.len() <= MAX_NAME && name.split('.').all(label))
         .then(|| Host::Name(name.to_ascii_lowercase()))
 }
+
+/// Longest label of a host name, and longest name, characters (RFC 1035, §2.3.4):
+/// no longer name resolves, so none is a host a browser can name.
+const MAX_LABEL: usize = 63;
+const MAX_NAME: usize = 253;
 
 /// An empty port (`host:` is allowed) or up to five digits.
 fn valid_port(port: &str) -> bool {
@@ -168,10 +173,12 @@ impl AllowedHosts {
         }
     }
 
-    /// Why `request` is refused, if it is: it is not a `GET` or `HEAD`, carries
-    /// `Origin` and names a host not allowed, or none it can be checked by.
+    /// Why `request` is refused, if it is: it is a call (not a `GET` or `HEAD`,
+    /// or one in a gRPC content type: tonic serves a call whatever its method),
+    /// carries `Origin` and names a host not allowed, or none it can be checked by.
     fn refusal<B>(&self, request: &Request<B>) -> Option<Refusal> {
-        let reads = matches!(*request.method(), Method::GET | Method::HEAD);
+        let reads = matches!(*request.method(), Method::GET | Method::HEAD)
+            && grpc_content_type(request.headers()).is_none();
         if reads || !request.headers().contains_key(header::ORIGIN) {
             return None;
         }
@@ -261,10 +268,7 @@ pub const REFUSAL_HEADER: &str = "laparo-refusal";
 /// (trailers-only), in the call's content type; otherwise HTTP 403, the message
 /// as text. Both carry [`REFUSAL_HEADER`]`: host`.
 fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
-    let grpc = request
-        .get(header::CONTENT_TYPE)
-        .filter(|v| v.as_bytes().starts_with(b"application/grpc"));
-    let Some(content_type) = grpc else {
+    let Some(content_type) = grpc_content_type(request) else {
         let mut response = Response::new(Body::new(format!("{message}\n")));
         *response.status_mut() = StatusCode::FORBIDDEN;
         let headers = response.headers_mut();
@@ -291,6 +295,14 @@ fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
         );
     }
     response
+}
+
+/// The request's content type if it is a gRPC or gRPC-web one
+/// (`application/grpc…`).
+fn grpc_content_type(request: &HeaderMap) -> Option<&HeaderValue> {
+    request
+        .get(header::CONTENT_TYPE)
+        .filter(|v| v.as_bytes().starts_with(b"application/grpc"))
 }
 
 /// The layer of [`HostCheck`].

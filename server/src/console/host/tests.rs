@@ -35,6 +35,19 @@ fn hosts_are_read_without_port_case_or_trailing_dot() {
 
 #[test]
 fn what_is_not_host_and_port_is_none() {
+    let label = "a".repeat(64);
+    let name = ["a".repeat(63).as_str(); 4].join(".");
+    assert_eq!(name.len(), 255);
+    for bad in [label.as_str(), name.as_str()] {
+        assert_eq!(parse_host(bad), None, "{} characters", bad.len());
+    }
+    let longest = format!(
+        "{}.{}",
+        ["a".repeat(63).as_str(); 3].join("."),
+        "a".repeat(61)
+    );
+    assert_eq!(longest.len(), MAX_NAME);
+    assert!(parse_host(&longest).is_some());
     for bad in [
         "",
         ":50051",
@@ -146,11 +159,28 @@ fn browser_requests_are_checked_by_every_host_they_name() {
     // Without Origin (native gRPC, a navigation): nothing is checked.
     assert_eq!(check(&[("host", b"attacker.example:50051")], path), None);
     assert_eq!(check(&[], path), None);
-    // Nor what reads the page's assets, with Origin or not.
+    // Nor what reads the page's assets, with Origin or not; but a call sent as a
+    // read (tonic serves it whatever the method) is checked.
     for method in ["GET", "HEAD"] {
         let mut read = request(&[ORIGIN, ("host", b"attacker.example:50051")], "/");
         *read.method_mut() = method.parse().unwrap();
         assert_eq!(allowed.refusal(&read), None, "{method}");
+        for grpc in [&b"application/grpc"[..], b"application/grpc-web+proto"] {
+            let mut call = request(
+                &[
+                    ORIGIN,
+                    ("host", b"attacker.example:50051"),
+                    ("content-type", grpc),
+                ],
+                path,
+            );
+            *call.method_mut() = method.parse().unwrap();
+            assert_eq!(
+                allowed.refusal(&call),
+                Some(Refusal::NotAllowed("attacker.example".into())),
+                "{method}"
+            );
+        }
     }
     // HTTP/1.1: the Host header.
     assert_eq!(
@@ -211,6 +241,13 @@ fn browser_requests_are_checked_by_every_host_they_name() {
         check(&[ORIGIN, ("host", format!("{long}:1:2").as_bytes())], path)
     else {
         panic!("a long malformed host is refused");
+    };
+    assert_eq!(echo.chars().count(), ECHOED_CHARS + 1);
+    // A name no DNS can hold is malformed, and so cut: a 100,000-letter Host was
+    // echoed whole, twice, as a name not allowed.
+    let huge = "x".repeat(100_000);
+    let Some(Refusal::Malformed(echo)) = check(&[ORIGIN, ("host", huge.as_bytes())], path) else {
+        panic!("an overlong name is refused as malformed");
     };
     assert_eq!(echo.chars().count(), ECHOED_CHARS + 1);
 }
