@@ -25,6 +25,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use laparo_proto::text::printable;
 use serde::Deserialize;
 use tonic::{Request, Status};
 
@@ -169,8 +170,12 @@ impl Tokens {
             if t.token.len() < 8 {
                 return Err(TokenListError::TooShort { index: k });
             }
+            // The name is only ever shown (in refusals, events and logs), so it is
+            // kept escaped: a control character in the operator's file reaches no
+            // client's terminal as it is.
+            let name = t.name.unwrap_or_else(|| format!("tokens[{k}]"));
             let caller = Caller {
-                name: t.name.unwrap_or_else(|| format!("tokens[{k}]")),
+                name: printable(&name).into_owned(),
                 role: t.role,
                 instruments: t.instruments,
             };
@@ -272,6 +277,21 @@ mod tests {
             Tokens::parse(&entry("short")).unwrap_err(),
             TokenListError::TooShort { index: 0 }
         ));
+    }
+
+    #[test]
+    fn a_name_is_kept_escaped_for_the_refusals_that_show_it() {
+        let text = format!(
+            "{}name = \"Bob \\u001b[31mred\\u202e\"\n",
+            entry("a-long-random-string")
+        );
+        let tokens = Tokens::parse(&text).unwrap();
+        let caller = tokens.by_token.get("a-long-random-string").unwrap();
+        let e = caller.require_instructor("creating a session").unwrap_err();
+        assert_eq!(
+            e.message(),
+            "creating a session needs an instructor token; `Bob \\u{1b}[31mred\\u{202e}` is a trainee"
+        );
     }
 
     #[test]
