@@ -234,11 +234,14 @@ impl LoadSummary {
         }
     }
 
-    /// The header of the table [`markdown_row`](Self::markdown_row) fills.
-    pub fn markdown_header() -> String {
-        "| stations | posing | pose Hz | s | frames/station min | mean | latency p50 ms | p99 ms | p99.9 ms | missed deadlines | tick p50 ms | tick p99 ms | poses accepted | rejected | recorded | recorder dropped | recorder backlog max | recorder lag max ms |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|"
-            .to_owned()
+    /// The header of the table [`markdown_row`](Self::markdown_row) fills: its two
+    /// lines, the names and the alignments, each printed as a line of its own
+    /// (a line break within one printed line is escaped, `\n`).
+    pub fn markdown_header() -> [&'static str; 2] {
+        [
+            "| stations | posing | pose Hz | s | frames/station min | mean | latency p50 ms | p99 ms | p99.9 ms | missed deadlines | tick p50 ms | tick p99 ms | poses accepted | rejected | recorded | recorder dropped | recorder backlog max | recorder lag max ms |",
+            "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|",
+        ]
     }
 
     /// This run as one markdown table row.
@@ -633,8 +636,9 @@ mod tests {
             recorder_max_lag_ms: 0.5,
             ..LoadSummary::default()
         };
-        let header = LoadSummary::markdown_header();
-        let columns = header.lines().next().unwrap().matches('|').count();
+        let [names, alignments] = LoadSummary::markdown_header();
+        let columns = names.matches('|').count();
+        assert_eq!(alignments.matches('|').count(), columns);
         let row = summary.markdown_row();
         assert_eq!(row.matches('|').count(), columns, "{row}");
         assert!(

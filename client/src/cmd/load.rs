@@ -105,6 +105,8 @@ fn print_summary(summary: &LoadSummary) {
         say!("the session's tick and recorder figures are missing: {why}");
     }
     say!();
-    say!("{}", LoadSummary::markdown_header());
+    for line in LoadSummary::markdown_header() {
+        say!("{line}");
+    }
     say!("{}", summary.markdown_row());
 }
