@@ -32,14 +32,22 @@ pub(super) fn origin_authority(origin: &str) -> Option<&str> {
 pub fn parse_origin(origin: &str) -> Result<HeaderValue, CorsError> {
     let bad = || CorsError(origin.to_string());
     let rest = origin_authority(origin).ok_or_else(bad)?;
-    let valid = !rest.is_empty()
-        && rest
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-.:[]".contains(c));
+    // What a browser can send as `Origin`: a host it can name, and a port of 1 to
+    // 65535 if any (an origin that can never match would be taken without a word).
+    let valid = super::host::parse_host(rest).is_some()
+        && port(rest).is_none_or(|p| p.parse::<u16>().is_ok_and(|n| n > 0));
     if !valid {
         return Err(bad());
     }
     HeaderValue::from_str(origin).map_err(|_| bad())
+}
+
+/// The port `host[:port]` writes, if any (after a bracketed IPv6 address's `]`).
+fn port(authority: &str) -> Option<&str> {
+    let after = authority
+        .rfind(']')
+        .map_or(authority, |i| &authority[i + 1..]);
+    after.split_once(':').map(|(_, p)| p)
 }
 
 /// The CORS layer: the allowed origins (none: every cross-origin call is
@@ -79,6 +87,8 @@ mod tests {
             "http://localhost:5173",
             "https://console.example.org",
             "http://[::1]:8080",
+            "http://[::1]",
+            "http://127.0.0.1:65535",
         ] {
             assert!(parse_origin(good).is_ok(), "{good}");
         }
@@ -91,6 +101,14 @@ mod tests {
             "http://example.org/",
             "http://example.org/path",
             "http://exa mple.org",
+            "http://[[[",
+            "http://a:b:c",
+            "http://evil.example:99999999",
+            "http://example.org:65536",
+            "http://example.org:0",
+            "http://example.org:",
+            "http://[::1]:",
+            "http://a..b",
         ] {
             let e = parse_origin(bad).unwrap_err();
             assert!(e.to_string().contains("--cors-origin"), "{bad}: {e}");
