@@ -37,9 +37,14 @@
 //! [`ConnectionLimits::keepalive_timeout`]) is hyper's and set on tonic's builder;
 //! it finds a peer that vanished while a stream is open.
 //!
+//! - **Requests that never end.** A call's request must arrive whole within
+//!   [`REQUEST_DEADLINE`] of its start (`Join`'s, a stream, excepted): a body sent a
+//!   byte at a time no longer holds its stream, and so its connection, open.
+//!
 //! Files: this one, the limits and the accept loop ([`incoming`]); `peers`, the
 //! count per peer and the refusals' log; `conn`, an accepted connection's idle
-//! timer and severance; `streams`, the layer that counts a connection's streams.
+//! timer and severance; `streams`, the layer that counts a connection's streams;
+//! `deadline`, the layer that bounds a request's arrival.
 
 use std::io;
 use std::sync::Arc;
@@ -54,10 +59,12 @@ use tokio_util::sync::CancellationToken;
 use tonic::transport::server::TcpConnectInfo;
 
 mod conn;
+mod deadline;
 mod peers;
 mod streams;
 
 pub use conn::Conn;
+pub use deadline::{REQUEST_DEADLINE, RequestDeadline, RequestDeadlineLayer};
 pub use peers::{PeerCounts, REFUSAL_LOG_INTERVAL, REFUSAL_LOG_PEERS};
 use peers::{PeerRefusals, log_summary, peer_key};
 pub use streams::{ConnInfo, CountStreams, CountStreamsLayer, Counted, StreamGuard};

@@ -309,6 +309,9 @@ pub async fn serve(
     builder
         .accept_http1(true)
         .layer(connections::CountStreamsLayer)
+        .layer(connections::RequestDeadlineLayer::new(
+            connections::REQUEST_DEADLINE,
+        ))
         .layer(crate::console::cors_layer(origins))
         // Inside CORS: preflights are CORS's, and a refusal carries its headers.
         .layer(crate::console::HostCheckLayer::new(hosts))

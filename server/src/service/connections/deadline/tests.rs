@@ -1,0 +1,87 @@
+//! The request deadline, in paused time: a body that does not end fails at the
+//! deadline with a status naming it; one that ends passes whole; a `Join`'s is
+//! left alone.
+
+use std::convert::Infallible;
+use std::future::poll_fn;
+
+use tonic::Code;
+
+use super::*;
+
+/// A request body that never sends anything and never ends: a client trickling
+/// nothing more.
+struct Silent;
+
+impl HttpBody for Silent {
+    type Data = tonic::codegen::Bytes;
+    type Error = Status;
+
+    fn poll_frame(
+        self: Pin<&mut Self>,
+        _: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Self::Data>, Status>>> {
+        Poll::Pending
+    }
+}
+
+/// A service that answers each request with its body, to read it as the handler
+/// would.
+struct Echo;
+
+impl tower_service::Service<Request<Body>> for Echo {
+    type Response = Body;
+    type Error = Infallible;
+    type Future = std::future::Ready<Result<Body, Infallible>>;
+
+    fn poll_ready(&mut self, _: &mut Context<'_>) -> Poll<Result<(), Infallible>> {
+        Poll::Ready(Ok(()))
+    }
+
+    fn call(&mut self, request: Request<Body>) -> Self::Future {
+        std::future::ready(Ok(request.into_body()))
+    }
+}
+
+async fn body_through(path: &str, body: Body) -> Body {
+    use tower_layer::Layer;
+    use tower_service::Service;
+    let mut service = RequestDeadlineLayer::new(REQUEST_DEADLINE).layer(Echo);
+    let request = Request::builder().uri(path).body(body).unwrap();
+    service.call(request).await.unwrap()
+}
+
+async fn next_frame(body: &mut Body) -> Option<Result<Frame<tonic::codegen::Bytes>, Status>> {
+    poll_fn(|cx| Pin::new(&mut *body).poll_frame(cx)).await
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_request_that_does_not_end_fails_at_its_deadline_naming_it() {
+    let start = Instant::now();
+    let mut body = body_through("/laparo.v1.Sessions/GetSession", Body::new(Silent)).await;
+    let status = match next_frame(&mut body).await {
+        Some(Err(status)) => status,
+        other => panic!("a silent body should fail, not give {other:?}"),
+    };
+    assert_eq!(start.elapsed(), REQUEST_DEADLINE);
+    assert_eq!(status.code(), Code::DeadlineExceeded);
+    assert!(
+        status.message().contains("within 30 s of its start"),
+        "{status:?}"
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_request_that_arrives_passes_whole_and_a_join_streams_for_as_long_as_it_likes() {
+    let mut body = body_through(
+        "/laparo.v1.Sessions/GetSession",
+        Body::new("s1".to_string()),
+    )
+    .await;
+    let frame = next_frame(&mut body).await.unwrap().unwrap();
+    assert_eq!(frame.into_data().unwrap(), "s1");
+    assert!(next_frame(&mut body).await.is_none());
+    let mut join = body_through(JOIN, Body::new(Silent)).await;
+    let waited = tokio::time::timeout(REQUEST_DEADLINE * 10, next_frame(&mut join)).await;
+    assert!(waited.is_err(), "a Join's body has no deadline: {waited:?}");
+}
