@@ -31,18 +31,33 @@ pub async fn asset(request: Request<Body>) -> Response<Body> {
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.starts_with("application/grpc"));
     if is_grpc {
-        let (parts, ()) = tonic::Status::unimplemented("no such service")
-            .into_http::<()>()
-            .into_parts();
-        return Response::from_parts(parts, Body::empty());
+        return unimplemented(request.headers());
     }
     lookup(request.method(), request.uri().path())
+}
+
+/// gRPC's `UNIMPLEMENTED` (trailers-only) in the call's own content type: a
+/// gRPC-web client reads a status only from an answer in gRPC-web's.
+fn unimplemented(request: &header::HeaderMap) -> Response<Body> {
+    let (mut parts, ()) = tonic::Status::unimplemented("no such service")
+        .into_http::<()>()
+        .into_parts();
+    if let Some(content_type) = request.get(header::CONTENT_TYPE) {
+        parts
+            .headers
+            .insert(header::CONTENT_TYPE, content_type.clone());
+    }
+    Response::from_parts(parts, Body::empty())
 }
 
 /// The answer for `method` and `path` (no query).
 pub fn lookup(method: &Method, path: &str) -> Response<Body> {
     if method != Method::GET && method != Method::HEAD {
-        return plain(StatusCode::METHOD_NOT_ALLOWED, "only GET and HEAD here\n");
+        let mut refused = plain(StatusCode::METHOD_NOT_ALLOWED, "only GET and HEAD here\n");
+        refused
+            .headers_mut()
+            .insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
+        return refused;
     }
     let name = match path {
         "/" | "/index.html" => "index.html",
@@ -57,6 +72,8 @@ pub fn lookup(method: &Method, path: &str) -> Response<Body> {
     } else {
         "no-cache"
     };
+    // A HEAD states the length its GET would send (an empty body would say 0).
+    let length = HeaderValue::from(file.data.len());
     let body = if method == Method::HEAD {
         Body::empty()
     } else {
@@ -64,6 +81,7 @@ pub fn lookup(method: &Method, path: &str) -> Response<Body> {
     };
     let mut response = Response::new(body);
     let headers = response.headers_mut();
+    headers.insert(header::CONTENT_LENGTH, length);
     headers.insert(
         header::CONTENT_TYPE,
         HeaderValue::from_static(content_type(name)),

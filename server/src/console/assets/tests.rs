@@ -43,13 +43,44 @@ fn unknown_paths_and_other_methods_are_refused() {
         lookup(&Method::GET, "/../Cargo.toml").status(),
         StatusCode::NOT_FOUND
     );
-    assert_eq!(
-        lookup(&Method::POST, "/").status(),
-        StatusCode::METHOD_NOT_ALLOWED
-    );
+    let post = lookup(&Method::POST, "/");
+    assert_eq!(post.status(), StatusCode::METHOD_NOT_ALLOWED);
+    assert_eq!(post.headers()[header::ALLOW], "GET, HEAD");
     // The stamp of the bundle's inputs is not an asset.
     assert_eq!(
         lookup(&Method::GET, "/bundle-hash.txt").status(),
         StatusCode::NOT_FOUND
     );
+}
+
+#[test]
+fn a_head_states_the_length_its_get_sends() {
+    let index = Assets::get("index.html").unwrap();
+    for method in [Method::GET, Method::HEAD] {
+        let r = lookup(&method, "/");
+        assert_eq!(
+            r.headers()[header::CONTENT_LENGTH],
+            index.data.len().to_string(),
+            "{method}"
+        );
+    }
+}
+
+#[tokio::test]
+async fn a_call_to_no_service_is_unimplemented_in_its_own_content_type() {
+    for content_type in [
+        "application/grpc",
+        "application/grpc-web+proto",
+        "application/grpc-web-text",
+    ] {
+        let request = Request::builder()
+            .method(Method::POST)
+            .uri("/laparo.v1.Nope/X")
+            .header(header::CONTENT_TYPE, content_type)
+            .body(Body::empty())
+            .unwrap();
+        let r = asset(request).await;
+        assert_eq!(r.headers()[header::CONTENT_TYPE], content_type);
+        assert_eq!(r.headers()["grpc-status"], "12", "{content_type}");
+    }
 }
