@@ -33,10 +33,11 @@
 //!   so a DNS answer cannot turn them against the server.
 //! - `GET` and `HEAD` but in a gRPC content type: the console's assets, which
 //!   hold no secret and do nothing (every call of a browser is a `POST`; tonic
-//!   serves a call whatever its method, so one sent as `GET` is checked). A browser sends `Origin` with some of them (the
-//!   page's module script is fetched in CORS mode even from its own origin), so
-//!   checking them left a page opened by a refused name blank, with nothing to say
-//!   why; served, the page loads and shows its first call's refusal.
+//!   serves a call whatever its method, so one sent as `GET` is checked). A
+//!   browser sends `Origin` with some of them (the page's module script is
+//!   fetched in CORS mode even from its own origin), so checking them left a page
+//!   opened by a refused name blank, with nothing to say why; served, the page
+//!   loads and shows its first call's refusal.
 //! - servers with tokens: a rebinding page has no token, and the authentication
 //!   interceptor refuses its calls (`UNAUTHENTICATED`).
 //!

@@ -31,15 +31,14 @@
 //!   every connection's reads and writes fail at once, whatever the peer does: an
 //!   `Observe` stream whose client stopped reading, with the socket's buffers full,
 //!   ends too.
+//! - **Requests that never end.** A call's request must arrive whole within
+//!   [`REQUEST_DEADLINE`] of its start (`Join`'s, a stream, excepted): a body sent a
+//!   byte at a time no longer holds its stream, and so its connection, open.
 //!
 //! HTTP/2 keepalive (a PING every [`ConnectionLimits::keepalive_interval`], the
 //! connection closed when its answer does not come within
 //! [`ConnectionLimits::keepalive_timeout`]) is hyper's and set on tonic's builder;
 //! it finds a peer that vanished while a stream is open.
-//!
-//! - **Requests that never end.** A call's request must arrive whole within
-//!   [`REQUEST_DEADLINE`] of its start (`Join`'s, a stream, excepted): a body sent a
-//!   byte at a time no longer holds its stream, and so its connection, open.
 //!
 //! Files: this one, the limits and the accept loop ([`incoming`]); `peers`, the
 //! count per peer and the refusals' log; `conn`, an accepted connection's idle

@@ -28,8 +28,12 @@ use tonic::body::Body;
 /// has not sent it in this long is not sending it.
 pub const REQUEST_DEADLINE: Duration = Duration::from_secs(30);
 
-/// The path of the one call whose request is a stream.
-const JOIN: &str = "/laparo.v1.Station/Join";
+/// Whether `path` names the one call whose request is a stream, `Join`
+/// (`/laparo.v1.Station/Join`).
+fn is_join(path: &str) -> bool {
+    path.strip_prefix('/').and_then(|p| p.split_once('/'))
+        == Some((laparo_proto::v1::station_server::SERVICE_NAME, "Join"))
+}
 
 /// The layer of [`RequestDeadline`].
 #[derive(Clone, Copy, Debug)]
@@ -75,7 +79,7 @@ where
     }
 
     fn call(&mut self, request: Request<Body>) -> S::Future {
-        if request.uri().path() == JOIN {
+        if is_join(request.uri().path()) {
             return self.inner.call(request);
         }
         let deadline = self.deadline;

@@ -81,7 +81,8 @@ async fn a_request_that_arrives_passes_whole_and_a_join_streams_for_as_long_as_i
     let frame = next_frame(&mut body).await.unwrap().unwrap();
     assert_eq!(frame.into_data().unwrap(), "s1");
     assert!(next_frame(&mut body).await.is_none());
-    let mut join = body_through(JOIN, Body::new(Silent)).await;
+    assert!(is_join("/laparo.v1.Station/Join"));
+    let mut join = body_through("/laparo.v1.Station/Join", Body::new(Silent)).await;
     let waited = tokio::time::timeout(REQUEST_DEADLINE * 10, next_frame(&mut join)).await;
     assert!(waited.is_err(), "a Join's body has no deadline: {waited:?}");
 }
