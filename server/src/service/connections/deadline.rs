@@ -1,8 +1,9 @@
 //! A call's request must arrive whole within [`REQUEST_DEADLINE`] of its start,
-//! but a `Join`'s, which is the station's stream for as long as it stays.
+//! but a `Join`'s, which is the station's stream for as long as it stays (and
+//! server reflection's, a stream too).
 //!
-//! Every call but `Join` sends one message (unary calls, and `Attach`, `Observe`
-//! and `Replay`, whose answer streams); its request body is a few hundred bytes to
+//! Every other call sends one message (unary calls, and `Attach`, `Observe` and
+//! `Replay`, whose answer streams); its request body is a few hundred bytes to
 //! 64 KiB and ends with that message. A body sent a byte at a time held its call,
 //! its stream count and so its connection open for ever: the idle timeout closes a
 //! connection with no open stream, hyper's header timeout covers headers only, and
@@ -28,11 +29,26 @@ use tonic::body::Body;
 /// has not sent it in this long is not sending it.
 pub const REQUEST_DEADLINE: Duration = Duration::from_secs(30);
 
-/// Whether `path` names the one call whose request is a stream, `Join`
-/// (`/laparo.v1.Station/Join`).
-fn is_join(path: &str) -> bool {
-    path.strip_prefix('/').and_then(|p| p.split_once('/'))
-        == Some((laparo_proto::v1::station_server::SERVICE_NAME, "Join"))
+/// The calls whose request is a stream, as (service, method): the station's
+/// `Join`, and server reflection's `ServerReflectionInfo` (both versions), which
+/// a tool may keep open between its questions.
+const STREAMED: [(&str, &str); 3] = [
+    (laparo_proto::v1::station_server::SERVICE_NAME, "Join"),
+    (
+        tonic_reflection::pb::v1::server_reflection_server::SERVICE_NAME,
+        "ServerReflectionInfo",
+    ),
+    (
+        tonic_reflection::pb::v1alpha::server_reflection_server::SERVICE_NAME,
+        "ServerReflectionInfo",
+    ),
+];
+
+/// Whether `path` (`/service/method`) names one of the [`STREAMED`] calls.
+fn streams_its_request(path: &str) -> bool {
+    path.strip_prefix('/')
+        .and_then(|p| p.split_once('/'))
+        .is_some_and(|call| STREAMED.contains(&call))
 }
 
 /// The layer of [`RequestDeadline`].
@@ -42,7 +58,8 @@ pub struct RequestDeadlineLayer {
 }
 
 impl RequestDeadlineLayer {
-    /// Requests (but a `Join`'s) must end within `deadline` of their start.
+    /// Requests (but those of the [`STREAMED`] calls) must end within `deadline`
+    /// of their start.
     pub fn new(deadline: Duration) -> Self {
         RequestDeadlineLayer { deadline }
     }
@@ -59,7 +76,8 @@ impl<S> tower_layer::Layer<S> for RequestDeadlineLayer {
     }
 }
 
-/// Gives every request body but a `Join`'s a deadline (see the module).
+/// Gives every request body but those of the [`STREAMED`] calls a deadline (see
+/// the module).
 #[derive(Clone, Debug)]
 pub struct RequestDeadline<S> {
     inner: S,
@@ -79,7 +97,7 @@ where
     }
 
     fn call(&mut self, request: Request<Body>) -> S::Future {
-        if is_join(request.uri().path()) {
+        if streams_its_request(request.uri().path()) {
             return self.inner.call(request);
         }
         let deadline = self.deadline;

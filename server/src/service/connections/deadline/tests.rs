@@ -1,6 +1,6 @@
 //! The request deadline, in paused time: a body that does not end fails at the
-//! deadline with a status naming it; one that ends passes whole; a `Join`'s is
-//! left alone.
+//! deadline with a status naming it; one that ends passes whole; a `Join`'s and
+//! reflection's are left alone.
 
 use std::convert::Infallible;
 use std::future::poll_fn;
@@ -72,7 +72,7 @@ async fn a_request_that_does_not_end_fails_at_its_deadline_naming_it() {
 }
 
 #[tokio::test(start_paused = true)]
-async fn a_request_that_arrives_passes_whole_and_a_join_streams_for_as_long_as_it_likes() {
+async fn a_request_that_arrives_passes_whole_and_a_stream_for_as_long_as_it_likes() {
     let mut body = body_through(
         "/laparo.v1.Sessions/GetSession",
         Body::new("s1".to_string()),
@@ -81,8 +81,25 @@ async fn a_request_that_arrives_passes_whole_and_a_join_streams_for_as_long_as_i
     let frame = next_frame(&mut body).await.unwrap().unwrap();
     assert_eq!(frame.into_data().unwrap(), "s1");
     assert!(next_frame(&mut body).await.is_none());
-    assert!(is_join("/laparo.v1.Station/Join"));
-    let mut join = body_through("/laparo.v1.Station/Join", Body::new(Silent)).await;
-    let waited = tokio::time::timeout(REQUEST_DEADLINE * 10, next_frame(&mut join)).await;
-    assert!(waited.is_err(), "a Join's body has no deadline: {waited:?}");
+    for path in [
+        "/laparo.v1.Station/Join",
+        "/grpc.reflection.v1.ServerReflection/ServerReflectionInfo",
+        "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+    ] {
+        let mut stream = body_through(path, Body::new(Silent)).await;
+        let waited = tokio::time::timeout(REQUEST_DEADLINE * 10, next_frame(&mut stream)).await;
+        assert!(
+            waited.is_err(),
+            "{path}: a stream has no deadline: {waited:?}"
+        );
+    }
+    // Anything else of those services, or a path that is not `/service/method`,
+    // is a call like any other.
+    for path in [
+        "/laparo.v1.Station/SendPoses",
+        "/laparo.v1.Station/Join/x",
+        "Join",
+    ] {
+        assert!(!streams_its_request(path), "{path}");
+    }
 }
