@@ -244,35 +244,48 @@ impl LoadSummary {
         ]
     }
 
-    /// This run as one markdown table row.
+    /// This run as one markdown table row. What the run did not measure is "–",
+    /// not 0: the frames when no station finished, the latencies when no pose was
+    /// answered, and the session's own figures (ticks, poses, recorder) when the
+    /// session ended before the run could ask for them ([`session_gone`]).
+    ///
+    /// [`session_gone`]: Self::session_gone
     pub fn markdown_row(&self) -> String {
-        let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
-        // With no pose answered there is no latency to show, not a latency of 0.
+        let unmeasured = || "–".to_owned();
+        let frames = |f: &dyn Fn() -> String| match self.frames_per_station.is_empty() {
+            true => unmeasured(),
+            false => f(),
+        };
         let latency = |ms: f64| match self.latency.count {
-            0 => "–".to_owned(),
+            0 => unmeasured(),
             _ => format!("{ms:.2}"),
         };
-        format!(
-            "| {} | {} | {} | {} | {} | {:.1} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {:.2} |",
-            self.stations,
-            self.posing_stations,
-            self.pose_rate_hz,
-            self.seconds,
-            min,
-            self.mean_frames(),
+        let session = |f: &dyn Fn() -> String| match self.session_gone {
+            Some(_) => unmeasured(),
+            None => f(),
+        };
+        let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
+        let cells = [
+            self.stations.to_string(),
+            self.posing_stations.to_string(),
+            self.pose_rate_hz.to_string(),
+            self.seconds.to_string(),
+            frames(&|| min.to_string()),
+            frames(&|| format!("{:.1}", self.mean_frames())),
             latency(self.latency.p50_ms),
             latency(self.latency.p99_ms),
             latency(self.latency.p999_ms),
-            self.missed_deadlines,
-            self.tick_time_p50_ms,
-            self.tick_time_p99_ms,
-            self.poses_accepted,
-            self.poses_rejected,
-            if self.recorded { "yes" } else { "no" },
-            self.recorder_dropped,
-            self.recorder_max_backlog,
-            self.recorder_max_lag_ms,
-        )
+            session(&|| self.missed_deadlines.to_string()),
+            session(&|| format!("{:.2}", self.tick_time_p50_ms)),
+            session(&|| format!("{:.2}", self.tick_time_p99_ms)),
+            session(&|| self.poses_accepted.to_string()),
+            session(&|| self.poses_rejected.to_string()),
+            session(&|| if self.recorded { "yes" } else { "no" }.to_owned()),
+            session(&|| self.recorder_dropped.to_string()),
+            session(&|| self.recorder_max_backlog.to_string()),
+            session(&|| format!("{:.2}", self.recorder_max_lag_ms)),
+        ];
+        format!("| {} |", cells.join(" | "))
     }
 }
 
@@ -651,8 +664,31 @@ mod tests {
     fn a_row_without_latency_samples_shows_none_not_zero() {
         let row = LoadSummary::default().markdown_row();
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-        // Cells 7–9 are the latency percentiles (cell 0 is before the first bar).
-        assert_eq!(cells[7..10], ["–", "–", "–"], "{row}");
+        // Cells 5–6 are the frames and 7–9 the latency percentiles (cell 0 is
+        // before the first bar); the session's figures were asked for.
+        assert_eq!(cells[5..10], ["–", "–", "–", "–", "–"], "{row}");
+        assert_eq!(
+            cells[10..19].join(" "),
+            "0 0.00 0.00 0 0 no 0 0 0.00",
+            "{row}"
+        );
+    }
+
+    #[test]
+    fn a_row_whose_session_ended_under_it_shows_its_figures_as_unmeasured() {
+        // The session closed mid-run: its own figures could not be asked for, and
+        // 0 poses accepted or "recorded: no" would say what was not measured.
+        let summary = LoadSummary {
+            frames_per_station: vec![4620],
+            session_gone: Some("session `s1` was closed".into()),
+            ..LoadSummary::default()
+        };
+        let row = summary.markdown_row();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(cells[5..7], ["4620", "4620.0"], "{row}");
+        assert!(cells[10..19].iter().all(|c| *c == "–"), "{row}");
+        let [names, _] = LoadSummary::markdown_header();
+        assert_eq!(row.matches('|').count(), names.matches('|').count());
     }
 
     #[test]
