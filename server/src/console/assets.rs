@@ -25,28 +25,19 @@ const CONTENT_SECURITY_POLICY: &str = "default-src 'self'; img-src 'self' data: 
 /// The router's fallback: a static asset, or gRPC's `UNIMPLEMENTED` for a call to
 /// an unknown service.
 pub async fn asset(request: Request<Body>) -> Response<Body> {
-    let is_grpc = request
-        .headers()
-        .get(header::CONTENT_TYPE)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.starts_with("application/grpc"));
-    if is_grpc {
-        return unimplemented(request.headers());
+    if let Some(content_type) = super::host::grpc_content_type(request.headers()) {
+        return unimplemented(content_type.clone());
     }
     lookup(request.method(), request.uri().path())
 }
 
 /// gRPC's `UNIMPLEMENTED` (trailers-only) in the call's own content type: a
 /// gRPC-web client reads a status only from an answer in gRPC-web's.
-fn unimplemented(request: &header::HeaderMap) -> Response<Body> {
+fn unimplemented(content_type: HeaderValue) -> Response<Body> {
     let (mut parts, ()) = tonic::Status::unimplemented("no such service")
         .into_http::<()>()
         .into_parts();
-    if let Some(content_type) = request.get(header::CONTENT_TYPE) {
-        parts
-            .headers
-            .insert(header::CONTENT_TYPE, content_type.clone());
-    }
+    parts.headers.insert(header::CONTENT_TYPE, content_type);
     Response::from_parts(parts, Body::empty())
 }
 

@@ -300,7 +300,7 @@ fn refused(request: &HeaderMap, message: &str) -> Response<Body> {
 
 /// The request's content type if it is a gRPC or gRPC-web one
 /// (`application/grpc…`).
-fn grpc_content_type(request: &HeaderMap) -> Option<&HeaderValue> {
+pub(super) fn grpc_content_type(request: &HeaderMap) -> Option<&HeaderValue> {
     request
         .get(header::CONTENT_TYPE)
         .filter(|v| v.as_bytes().starts_with(b"application/grpc"))
