@@ -251,19 +251,14 @@ impl LoadSummary {
     ///
     /// [`session_gone`]: Self::session_gone
     pub fn markdown_row(&self) -> String {
-        let unmeasured = || "–".to_owned();
-        let frames = |f: &dyn Fn() -> String| match self.frames_per_station.is_empty() {
-            true => unmeasured(),
-            false => f(),
+        // `shown()` when `measured`, else "–".
+        let cell = |measured: bool, shown: &dyn Fn() -> String| match measured {
+            true => shown(),
+            false => "–".to_owned(),
         };
-        let latency = |ms: f64| match self.latency.count {
-            0 => unmeasured(),
-            _ => format!("{ms:.2}"),
-        };
-        let session = |f: &dyn Fn() -> String| match self.session_gone {
-            Some(_) => unmeasured(),
-            None => f(),
-        };
+        let frames = |f: &dyn Fn() -> String| cell(!self.frames_per_station.is_empty(), f);
+        let latency = |ms: f64| cell(self.latency.count > 0, &|| format!("{ms:.2}"));
+        let session = |f: &dyn Fn() -> String| cell(self.session_gone.is_none(), f);
         let min = self.frames_per_station.iter().min().copied().unwrap_or(0);
         let cells = [
             self.stations.to_string(),
