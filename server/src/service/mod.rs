@@ -295,23 +295,20 @@ pub async fn serve(
         .add_service(station)
         .add_service(observe)
         .add_service(recordings);
-    // gRPC-web translated to gRPC for the services (the browser console's calls);
-    // the console's static assets answer what no service does (outside the
-    // translation, which refuses any other HTTP/1.1 request).
+    // The services' calls go through `call_layers`; the console's static assets
+    // answer what no service does (outside the translation, which refuses any
+    // other HTTP/1.1 request).
     let routes = Routes::from(
         routes
             .routes()
             .into_axum_router()
-            .route_layer(tonic_web::GrpcWebLayer::new())
+            .route_layer(call_layers(connections::REQUEST_DEADLINE))
             .fallback(crate::console::asset),
     );
     // HTTP/1.1 too: gRPC-web from a browser.
     builder
         .accept_http1(true)
         .layer(connections::CountStreamsLayer)
-        .layer(connections::RequestDeadlineLayer::new(
-            connections::REQUEST_DEADLINE,
-        ))
         .layer(crate::console::cors_layer(origins))
         // Inside CORS: preflights are CORS's, and a refusal carries its headers.
         .layer(crate::console::HostCheckLayer::new(hosts))
@@ -322,4 +319,19 @@ pub async fn serve(
         )
         .await?;
     Ok(())
+}
+
+/// What each of the services' calls passes through, outermost first: gRPC-web
+/// translated to gRPC (the browser console's calls; a gRPC call passes as it
+/// is), then the request's `deadline` ([`connections::RequestDeadline`]) on the
+/// translated body. In this order a gRPC-web call whose request does not arrive
+/// in time is answered `DEADLINE_EXCEEDED`, as a gRPC one is: the translation
+/// reports any error of the body it decodes as `INTERNAL`.
+pub fn call_layers(
+    deadline: Duration,
+) -> tower_layer::Stack<connections::RequestDeadlineLayer, tonic_web::GrpcWebLayer> {
+    tower_layer::Stack::new(
+        connections::RequestDeadlineLayer::new(deadline),
+        tonic_web::GrpcWebLayer::new(),
+    )
 }

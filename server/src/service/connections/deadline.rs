@@ -12,6 +12,12 @@
 //! call fails with `DEADLINE_EXCEEDED` naming the limit when it has not ended by
 //! the deadline; the call ends, and with it the stream. `Join` is left to the
 //! station's own timeout (`--station-timeout`), which counts whole messages.
+//!
+//! The layer sits inside gRPC-web's translation ([`call_layers`]), so that it
+//! reads the gRPC body a browser's call is translated to and its status reaches
+//! the browser as it is.
+//!
+//! [`call_layers`]: crate::service::call_layers
 
 use std::future::Future;
 use std::pin::Pin;
@@ -84,9 +90,11 @@ pub struct RequestDeadline<S> {
     deadline: Duration,
 }
 
-impl<S> tower_service::Service<Request<Body>> for RequestDeadline<S>
+impl<S, B> tower_service::Service<Request<B>> for RequestDeadline<S>
 where
     S: tower_service::Service<Request<Body>>,
+    B: HttpBody<Data = tonic::codegen::Bytes> + Send + 'static,
+    B::Error: Into<tonic::codegen::StdError>,
 {
     type Response = S::Response;
     type Error = S::Error;
@@ -96,14 +104,14 @@ where
         self.inner.poll_ready(cx)
     }
 
-    fn call(&mut self, request: Request<Body>) -> S::Future {
+    fn call(&mut self, request: Request<B>) -> S::Future {
         if streams_its_request(request.uri().path()) {
-            return self.inner.call(request);
+            return self.inner.call(request.map(Body::new));
         }
         let deadline = self.deadline;
         self.inner.call(request.map(|body| {
             Body::new(Deadlined {
-                body,
+                body: Body::new(body),
                 sleep: Box::pin(tokio::time::sleep_until(Instant::now() + deadline)),
                 deadline,
             })

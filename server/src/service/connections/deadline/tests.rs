@@ -103,3 +103,60 @@ async fn a_request_that_arrives_passes_whole_and_a_stream_for_as_long_as_it_like
         assert!(!streams_its_request(path), "{path}");
     }
 }
+
+/// The status a gRPC-web response carries, from its headers (a trailers-only
+/// answer) or from the trailer frame of its body (flag 0x80, a length, then
+/// `name: value` lines).
+async fn status_of(response: http::Response<Body>) -> Status {
+    if let Some(status) = Status::from_header_map(response.headers()) {
+        return status;
+    }
+    let mut body = response.into_body();
+    let mut bytes = Vec::new();
+    while let Some(frame) = next_frame(&mut body).await {
+        if let Ok(data) = frame.expect("the answer's body").into_data() {
+            bytes.extend_from_slice(&data);
+        }
+    }
+    let at = bytes
+        .iter()
+        .position(|&b| b == 0x80)
+        .unwrap_or_else(|| panic!("no trailer frame in {bytes:?}"));
+    let mut trailers = http::HeaderMap::new();
+    for line in String::from_utf8_lossy(&bytes[at + 5..]).lines() {
+        if let Some((name, value)) = line.split_once(':') {
+            trailers.insert(
+                http::HeaderName::try_from(name.trim()).unwrap(),
+                http::HeaderValue::try_from(value.trim()).unwrap(),
+            );
+        }
+    }
+    Status::from_header_map(&trailers).expect("a grpc-status in the trailers")
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_grpc_web_request_that_does_not_end_is_answered_deadline_exceeded() {
+    // Through the server's own stack of layers to a real service (health): the
+    // deadline acts on the translated body, so the status is the deadline's own,
+    // not the translation's INTERNAL.
+    use tower_layer::Layer;
+    use tower_service::Service;
+    let (_, health) = tonic_health::server::health_reporter();
+    let mut service = crate::service::call_layers(REQUEST_DEADLINE).layer(health);
+    let request = Request::builder()
+        .method("POST")
+        .version(http::Version::HTTP_11)
+        .uri("/grpc.health.v1.Health/Check")
+        .header("content-type", "application/grpc-web+proto")
+        .body(Body::new(Silent))
+        .unwrap();
+    let start = Instant::now();
+    let response = service.call(request).await.unwrap();
+    let status = status_of(response).await;
+    assert_eq!(start.elapsed(), REQUEST_DEADLINE);
+    assert_eq!(status.code(), Code::DeadlineExceeded, "{status:?}");
+    assert!(
+        status.message().contains("within 30 s of its start"),
+        "{status:?}"
+    );
+}
