@@ -13,6 +13,9 @@
 //! the deadline; the call ends, and with it the stream. `Join` is left to the
 //! station's own timeout (`--station-timeout`), which counts whole messages.
 //!
+//! Such a call's body must also hold one message: a second is answered
+//! `INTERNAL`, naming it, as gRPC's own servers answer it ([`framing`]).
+//!
 //! The layer sits inside gRPC-web's translation ([`call_layers`]), so that it
 //! reads the gRPC body a browser's call is translated to and its status reaches
 //! the browser as it is.
@@ -29,6 +32,8 @@ use http_body::{Body as HttpBody, Frame, SizeHint};
 use tokio::time::{Instant, Sleep};
 use tonic::Status;
 use tonic::body::Body;
+
+use framing::Framing;
 
 /// How long a call's request may take to arrive whole, from its start: a 64 KiB
 /// request over any working link arrives in well under a second; a client that
@@ -114,16 +119,19 @@ where
                 body: Body::new(body),
                 sleep: Box::pin(tokio::time::sleep_until(Instant::now() + deadline)),
                 deadline,
+                framing: Framing::default(),
             })
         }))
     }
 }
 
-/// A request body that fails once its deadline passes before it ends.
+/// A request body that fails once its deadline passes before it ends, or once a
+/// second message begins in it.
 struct Deadlined {
     body: Body,
     sleep: Pin<Box<Sleep>>,
     deadline: Duration,
+    framing: Framing,
 }
 
 impl HttpBody for Deadlined {
@@ -135,6 +143,15 @@ impl HttpBody for Deadlined {
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Self::Data>, Status>>> {
         if let Poll::Ready(frame) = Pin::new(&mut self.body).poll_frame(cx) {
+            if let Some(Ok(frame)) = &frame
+                && let Some(data) = frame.data_ref()
+                && !self.framing.read(data)
+            {
+                return Poll::Ready(Some(Err(Status::internal(
+                    "the request held a second message: this call takes one (only \
+                     Join's request may stream)",
+                ))));
+            }
             return Poll::Ready(frame);
         }
         match self.sleep.as_mut().poll(cx) {
@@ -156,5 +173,6 @@ impl HttpBody for Deadlined {
     }
 }
 
+mod framing;
 #[cfg(test)]
 mod tests;

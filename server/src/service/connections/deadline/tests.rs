@@ -104,9 +104,9 @@ async fn a_request_that_arrives_passes_whole_and_a_stream_for_as_long_as_it_like
     }
 }
 
-/// The status a gRPC-web response carries, from its headers (a trailers-only
-/// answer) or from the trailer frame of its body (flag 0x80, a length, then
-/// `name: value` lines).
+/// The status a gRPC or gRPC-web response carries, from its headers (a
+/// trailers-only answer), its HTTP trailers (gRPC), or the trailer frame of its
+/// body (gRPC-web: flag 0x80, a length, then `name: value` lines).
 async fn status_of(response: http::Response<Body>) -> Status {
     if let Some(status) = Status::from_header_map(response.headers()) {
         return status;
@@ -114,8 +114,14 @@ async fn status_of(response: http::Response<Body>) -> Status {
     let mut body = response.into_body();
     let mut bytes = Vec::new();
     while let Some(frame) = next_frame(&mut body).await {
-        if let Ok(data) = frame.expect("the answer's body").into_data() {
-            bytes.extend_from_slice(&data);
+        match frame.expect("the answer's body").into_data() {
+            Ok(data) => bytes.extend_from_slice(&data),
+            // gRPC's trailers, as HTTP trailers.
+            Err(frame) => {
+                if let Ok(trailers) = frame.into_trailers() {
+                    return Status::from_header_map(&trailers).expect("a grpc-status");
+                }
+            }
         }
     }
     let at = bytes
@@ -159,4 +165,42 @@ async fn a_grpc_web_request_that_does_not_end_is_answered_deadline_exceeded() {
         status.message().contains("within 30 s of its start"),
         "{status:?}"
     );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_second_message_in_a_one_message_call_is_refused_naming_it() {
+    // Health's Check takes one message; an empty one is its 5-byte prefix alone.
+    use tower_layer::Layer;
+    use tower_service::Service;
+    let (_, health) = tonic_health::server::health_reporter();
+    let mut service = crate::service::call_layers(REQUEST_DEADLINE).layer(health);
+    for (messages, content_type) in [
+        (1, "application/grpc"),
+        (2, "application/grpc"),
+        (1, "application/grpc-web+proto"),
+        (2, "application/grpc-web+proto"),
+    ] {
+        let version = match content_type {
+            "application/grpc" => http::Version::HTTP_2,
+            _ => http::Version::HTTP_11,
+        };
+        // NUL bytes are UTF-8: the messages go as a string body.
+        let body = "\0".repeat(5 * messages);
+        let request = Request::builder()
+            .method("POST")
+            .version(version)
+            .uri("/grpc.health.v1.Health/Check")
+            .header("content-type", content_type)
+            .header("te", "trailers")
+            .body(Body::new(body))
+            .unwrap();
+        let response = service.call(request).await.unwrap();
+        let status = status_of(response).await;
+        if messages == 1 {
+            assert_eq!(status.code(), Code::Ok, "{content_type}: {status:?}");
+        } else {
+            assert_eq!(status.code(), Code::Internal, "{content_type}: {status:?}");
+            assert!(status.message().contains("a second message"), "{status:?}");
+        }
+    }
 }
