@@ -156,6 +156,10 @@ pub struct ObserveSummary {
     /// Whether the server ended the stream (the session closed, or the recording
     /// played back ended).
     pub server_closed: bool,
+    /// What the server said when it ended a replay at the end of what it had
+    /// rather than the recording's (`OUT_OF_RANGE`: a recording still being
+    /// written, played to where it stood when the replay began).
+    pub end_note: Option<String>,
 }
 
 fn update(line: &mut StatusLine, state: &InstrumentState) {
@@ -254,6 +258,11 @@ pub async fn run_observe(
                 }},
                 Ok(None) => {
                     summary.server_closed = true;
+                    break;
+                }
+                Err(status) if status.code() == tonic::Code::OutOfRange => {
+                    summary.server_closed = true;
+                    summary.end_note = Some(status.message().to_string());
                     break;
                 }
                 Err(status) => {

@@ -99,7 +99,27 @@ async fn trainees_review_recordings_and_only_instructors_watch_one_being_made() 
     let (got, end) = replay_all(&ch, teacher, replay_request(&name, Some(100.0), None))
         .await
         .unwrap();
-    end.unwrap();
+    // It ends where the file stood when the replay opened it, and says so: the
+    // session goes on, and its end is not the recording's.
+    let end = end.expect_err("a replay of a recording in progress ends saying so");
+    assert_eq!(end.code(), Code::OutOfRange, "{end:?}");
+    assert!(
+        end.message().contains("still being recorded")
+            && end.message().contains(&format!("`{name}` up to")),
+        "{end:?}"
+    );
+    // The client says it as the replay's end, not as a failure.
+    let mut watch = laparo_client::observe::ObserveConfig::replay(
+        format!("http://{}", server.addr),
+        replay_request(&name, Some(100.0), None),
+    );
+    watch.connect.token = teacher.map(String::from);
+    let summary = laparo_client::observe::run_observe(watch, |_| {})
+        .await
+        .unwrap();
+    assert!(summary.server_closed && summary.frames > 0, "{summary:?}");
+    let note = summary.end_note.unwrap_or_default();
+    assert!(note.contains("still being recorded"), "{note}");
     assert!(matches!(
         got[0].1.kind,
         Some(v1::observe_message::Kind::Scene(_))

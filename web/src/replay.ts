@@ -167,6 +167,16 @@ export function replay(root: HTMLElement, file: string, signal: AbortSignal): vo
         } catch (e) {
           if (mine.signal.aborted) return;
           const f = failure(e);
+          if (f.code === Code.OutOfRange && mine === stream) {
+            // A recording still being written, played to where it stood when
+            // the replay began (the text says so): paused there, so that play
+            // goes on from it with what has been recorded since.
+            stream = null;
+            page.dataset.state = "paused";
+            setConnection("idle", f.text);
+            refreshDuration();
+            return;
+          }
           page.dataset.error = f.text;
           const slot = f.code === Code.ResourceExhausted && attempt < SLOT_ATTEMPTS - 1;
           if (!f.retry && !slot) {

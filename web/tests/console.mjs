@@ -210,6 +210,27 @@ try {
   check(seen.tip === mine.tip, `the observer sees the tip at ${seen.tip}, the driver at ${mine.tip}`);
   console.log(`ok observer sees left held by station ${seen.held} at ${seen.tip}`);
 
+  // The session's recording, replayed while it is still being made, plays to
+  // where the file stood and stops there saying so: paused, not ended.
+  step = "replay in progress";
+  const early = await other.newPage();
+  watch(early, "early replay", problems);
+  await early.goto(url);
+  await useToken(early, token);
+  const going = await early.waitForSelector(`#recordings tr[data-recording] >> text=${sessionId}`, { timeout: T });
+  const goingFile = await going.evaluate((e) => e.closest("tr").dataset.recording);
+  await early.goto(`${url}#/replay/${encodeURIComponent(goingFile)}`);
+  await early.waitForFunction(() => Number(document.querySelector("#replay")?.dataset.drawn) > 0, null, { timeout: T });
+  await early.selectOption("#speed", "10");
+  await early.waitForFunction(() => document.querySelector("#replay")?.dataset.state === "paused", null, { timeout: 60_000 });
+  const stood = await early.evaluate(() => ({
+    connection: document.querySelector("#connection").textContent,
+    error: document.querySelector("#replay").dataset.error ?? "",
+  }));
+  check(/still being recorded/.test(stood.connection) && !stood.error, `a replay of the recording in progress ended: ${stood.connection} (error: ${stood.error})`);
+  console.log(`ok a replay of the recording in progress stops where it stood: ${stood.connection}`);
+  await early.close();
+
   // Closing the session is said on both pages.
   step = "close";
   await driver.goto(`${url}#/`);

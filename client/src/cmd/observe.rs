@@ -72,7 +72,7 @@ pub(crate) fn print_watch_summary(summary: &ObserveSummary, ended: &str) {
         summary.events,
         summary.max_force_n,
         if summary.server_closed {
-            format!("; {ended}")
+            format!("; {}", summary.end_note.as_deref().unwrap_or(ended))
         } else {
             String::new()
         }

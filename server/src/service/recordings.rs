@@ -53,7 +53,7 @@ use super::auth::{Caller, Role, caller};
 use super::capacity::{replay_weight, tetrahedra};
 use super::read_status::read_status;
 use super::registry::Registry;
-use super::replay::{ReadRecorded, ReadResimulated, feed, pace};
+use super::replay::{ReadRecorded, ReadResimulated, StillRecording, feed, pace};
 use super::stream::OUTBOUND;
 use crate::recording::list::{self, FileState};
 use crate::recording::{ReadError, Recording};
@@ -200,6 +200,9 @@ fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
 struct Opened {
     recording: Recording,
     scene: v1::SceneDescription,
+    /// For a recording still being written, how many seconds it held when opened:
+    /// the replay ends there, and says so ([`StillRecording`]).
+    held_s: Option<f64>,
 }
 
 /// Opens `name` in `dir` for a replay by `caller` from `offset`.
@@ -254,7 +257,12 @@ fn open_for_replay(
         )));
     }
     let scene = recording.scene().map_err(status)?;
-    Ok(Opened { recording, scene })
+    let held_s = (state == FileState::InProgress).then_some(duration);
+    Ok(Opened {
+        recording,
+        scene,
+        held_s,
+    })
 }
 
 #[tonic::async_trait]
@@ -346,14 +354,16 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let recording = Arc::new(opened.recording);
         let reading = slot.clone();
         let scene_dir = self.registry.catalog.dir.clone();
+        let held_s = opened.held_s;
         match playback {
             Playback::Recorded => tokio::spawn(async move {
-                feed(ReadRecorded::new(recording, name, offset), feed_tx).await;
+                let reader = ReadRecorded::new(recording, name.clone(), offset);
+                feed(StillRecording::new(reader, name, held_s), feed_tx).await;
                 drop(reading);
             }),
             Playback::Resimulate => tokio::spawn(async move {
-                let reader = ReadResimulated::new(recording, name, offset, scene_dir);
-                feed(reader, feed_tx).await;
+                let reader = ReadResimulated::new(recording, name.clone(), offset, scene_dir);
+                feed(StillRecording::new(reader, name, held_s), feed_tx).await;
                 drop(reading);
             }),
         };

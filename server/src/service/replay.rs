@@ -19,6 +19,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use laparo_proto::text::printable;
 use laparo_proto::v1;
 use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
@@ -213,6 +214,50 @@ impl Reader for ReadRecorded {
             self.gate.pass(t, item, &mut out);
         }
         true
+    }
+}
+
+/// A replay's reading, told whether its recording was still being written when
+/// it was opened (`held_s`: the seconds it held then; `None`: a finished one).
+///
+/// A file still being written is read as it stood when the replay opened it: its
+/// complete chunks then. Its end is not the session's, so a replay that reaches it
+/// ends with `OUT_OF_RANGE` ("reading past the end of a file that may grow", as
+/// gRPC describes the code), naming what it played and what to do for the rest,
+/// where a finished recording's replay ends OK. A failure the reader ends with is
+/// sent as it is.
+pub struct StillRecording<R> {
+    reader: R,
+    name: String,
+    held_s: Option<f64>,
+}
+
+impl<R: Reader> StillRecording<R> {
+    pub fn new(reader: R, name: String, held_s: Option<f64>) -> Self {
+        StillRecording {
+            reader,
+            name,
+            held_s,
+        }
+    }
+}
+
+impl<R: Reader> Reader for StillRecording<R> {
+    fn read(&mut self, out: &mut Burst) -> bool {
+        if self.reader.read(out) {
+            return true;
+        }
+        if let Some(held_s) = self.held_s
+            && !matches!(out.last(), Some(Err(_)))
+        {
+            out.push(Err(Status::out_of_range(format!(
+                "the replay played `{}` up to {held_s:.2} s, where it stood when the \
+                 replay began: its session was still being recorded; replay it again \
+                 for what came since, or observe the session live",
+                printable(&self.name),
+            ))));
+        }
+        false
     }
 }
 
