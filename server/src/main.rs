@@ -166,6 +166,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             .map_err(|e| format!("--station-timeout: {e}"))?,
         insecure: args.insecure,
         recordings: (!args.no_recording).then_some(args.recordings),
+        recordings_min_free: None,
         capacity: {
             let machine = Machine::this();
             let mut capacity = Capacity::for_machine(machine);

@@ -1,5 +1,5 @@
-//! Who may replay what, a server that records nothing, and clients told of a
-//! recorder that failed before they came.
+//! Who may replay what, a recording refused for want of room, a server that
+//! records nothing, and clients told of a recorder that failed before they came.
 
 use std::time::Duration;
 
@@ -156,6 +156,48 @@ async fn trainees_review_recordings_and_only_instructors_watch_one_being_made() 
     end.unwrap();
     let frames = got.iter().filter(|(_, m)| bits(m).is_some()).count();
     assert!(frames >= ticks.len());
+    server.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recorded_session_without_room_for_its_file_is_refused_naming_the_limit() {
+    // No file system has u64::MAX bytes free: every recording lacks room.
+    let dir = recordings_dir("no-room");
+    let server = TestServer::start(ServeConfig {
+        recordings: Some(dir.clone()),
+        recordings_min_free: Some(u64::MAX),
+        ..ServeConfig::default()
+    })
+    .await;
+    let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
+    let create = |record| v1::CreateSessionRequest {
+        scene: "default".into(),
+        idle_timeout_s: None,
+        record: Some(record),
+    };
+    let refused = sessions.create_session(create(true)).await.unwrap_err();
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    assert!(
+        refused.message().contains("MiB free, under the")
+            && refused.message().contains("MIN_FREE_BYTES"),
+        "{refused:?}"
+    );
+    // Nothing was written, and the refusal held no session's place.
+    let files = std::fs::read_dir(&dir).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(files, 0);
+    assert!(
+        sessions
+            .list_sessions(v1::ListSessionsRequest {})
+            .await
+            .unwrap()
+            .into_inner()
+            .sessions
+            .is_empty()
+    );
+    // Unrecorded, the same scene starts.
+    let session = sessions.create_session(create(false)).await.unwrap();
+    assert!(session.into_inner().recording_file.is_none());
     server.shutdown().await.unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -67,6 +67,7 @@ pub mod records;
 pub mod recover;
 pub mod resim;
 pub mod source;
+pub mod space;
 pub mod summary;
 pub mod writer;
 

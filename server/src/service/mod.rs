@@ -101,6 +101,9 @@ pub struct ServeConfig {
     /// Directory sessions are recorded in (created if missing); `None`: no
     /// recording.
     pub recordings: Option<PathBuf>,
+    /// The free space a new recording needs in `recordings`, bytes; `None`:
+    /// [`crate::recording::space::MIN_FREE_BYTES`].
+    pub recordings_min_free: Option<u64>,
     /// Sessions, connections and replays at once (default: derived from the machine).
     pub capacity: capacity::Capacity,
     /// A connection with no open stream this long is closed; `None`:
@@ -169,7 +172,12 @@ pub async fn serve(
     }
     let registry = Arc::new(
         Registry::new(catalog, config.idle_timeout, config.recordings.clone())
-            .with_capacity(config.capacity),
+            .with_capacity(config.capacity)
+            .with_min_free(
+                config
+                    .recordings_min_free
+                    .unwrap_or(crate::recording::space::MIN_FREE_BYTES),
+            ),
     );
     let auth = auth::Authenticate::new(config.tokens.clone());
 

@@ -15,7 +15,7 @@ use super::capacity::{
 };
 use super::catalog::SceneCatalog;
 use crate::engine::scene::Scene;
-use crate::recording::Recorder;
+use crate::recording::{Recorder, space};
 use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// A session being started, counted (as its weight, the second field) until it is
@@ -37,6 +37,9 @@ pub struct Registry {
     pub idle_timeout: Option<Duration>,
     /// Where sessions are recorded; `None`: this server records nothing.
     pub recordings: Option<PathBuf>,
+    /// The free space a new recording needs there, bytes
+    /// ([`space::MIN_FREE_BYTES`] unless [`with_min_free`](Self::with_min_free)).
+    min_free: u64,
     /// The recorders of this server's sessions, until their files are finished.
     recorders: Mutex<Vec<Weak<Recorder>>>,
     /// Whether the server is shutting down, and why.
@@ -66,6 +69,7 @@ impl Registry {
             next: AtomicU64::new(1),
             idle_timeout,
             recordings,
+            min_free: space::MIN_FREE_BYTES,
             recorders: Mutex::new(Vec::new()),
             shutdown: Closing::new(),
             joins: Default::default(),
@@ -74,6 +78,12 @@ impl Registry {
             sizes: Mutex::new(HashMap::new()),
             replays: ReplaySlots::new(usize::MAX >> 4),
         }
+    }
+
+    /// A new recording needs `bytes` free on the recordings' file system.
+    pub fn with_min_free(mut self, bytes: u64) -> Self {
+        self.min_free = bytes;
+        self
     }
 
     /// These limits on sessions and replays (by default a registry has none).
@@ -176,6 +186,9 @@ impl Registry {
             idle_timeout,
             recordings: self.recordings.clone().filter(|_| record),
         };
+        if let Some(dir) = &config.recordings {
+            self.room_for_recording(dir, name)?;
+        }
         // Building a scene reads its mesh and assembles the model: not on the
         // async runtime's threads.
         let session = tokio::task::block_in_place(|| Session::start(id.clone(), scene, &config))
@@ -198,6 +211,28 @@ impl Registry {
         drop(reserved);
         tracing::info!(session = %session.id, scene = name, "session created");
         Ok(session)
+    }
+
+    /// Whether `dir`'s file system has room for a new recording (see [`space`]);
+    /// refused `RESOURCE_EXHAUSTED` naming the limit if not. A file system that
+    /// cannot be asked is left to the recorder, which says what fails.
+    fn room_for_recording(&self, dir: &Path, scene: &str) -> Result<(), Status> {
+        let Ok(free) = space::free_bytes(dir) else {
+            return Ok(());
+        };
+        if free >= self.min_free {
+            return Ok(());
+        }
+        let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
+        Err(Status::resource_exhausted(format!(
+            "cannot record a session of scene `{}`: the recordings directory's file \
+             system has {:.1} MiB free, under the {:.1} MiB a new recording needs \
+             (MIN_FREE_BYTES); free some space, or create the session with record \
+             false",
+            printable(scene),
+            mib(free),
+            mib(self.min_free)
+        )))
     }
 
     /// The open session `id`.
