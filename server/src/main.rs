@@ -88,8 +88,13 @@ struct ServeArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     max_replays: Option<u32>,
     /// Close a connection with no open stream after this many seconds (at most 86400).
-    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = idle_connection_seconds)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = connection_seconds)]
     idle_connection: f64,
+    /// Close a connection whose peer takes none of the bytes waiting for it
+    /// (reads nothing) for this many seconds (at most 86400).
+    #[arg(long, value_name = "SECONDS", value_parser = connection_seconds,
+          default_value_t = laparo_server::service::connections::DEFAULT_WRITE_STALL.as_secs_f64())]
+    write_stall: f64,
     /// An origin (`http://host:port`) whose pages may call the server from a
     /// browser (CORS); repeat for more. Without it only the console the server
     /// serves itself may.
@@ -102,8 +107,8 @@ struct ServeArgs {
     allowed_hosts: Vec<String>,
 }
 
-/// An idle-connection timeout in seconds: (0, 86400].
-fn idle_connection_seconds(s: &str) -> Result<f64, String> {
+/// A connection's idle or write-stall limit in seconds: (0, 86400].
+fn connection_seconds(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
     if v.is_finite() && v > 0.0 && v <= 86_400.0 {
         Ok(v)
@@ -187,6 +192,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
             capacity
         },
         idle_connection: Some(std::time::Duration::from_secs_f64(args.idle_connection)),
+        write_stall: Some(std::time::Duration::from_secs_f64(args.write_stall)),
         cors_origins: args.cors_origins,
         max_attached: None,
         allowed_hosts: args.allowed_hosts,

@@ -1,7 +1,9 @@
 //! A real `laparo-server`'s connections: closed when idle (a silent TCP connection,
 //! one that sent only the HTTP/2 preface), kept while a stream is open, refused
-//! past `--max-connections`, and out of file descriptors the accept loop waits
-//! instead of spinning a core, serving again once connections close.
+//! past `--max-connections`, out of file descriptors the accept loop waits
+//! instead of spinning a core, serving again once connections close, and a
+//! connection whose peer reads nothing is closed after `--write-stall` while one
+//! that reads slowly is not.
 
 use std::ffi::OsStr;
 use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
@@ -240,4 +242,176 @@ async fn out_of_file_descriptors_the_accept_loop_waits_and_serves_again_once_the
         }
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+}
+
+/// The largest of the console's files the server serves, and its size: `GET`s of it
+/// are what a peer that reads nothing would ask for.
+fn largest_asset() -> (String, usize) {
+    use laparo_server::console::assets::{Assets, STAMP};
+    Assets::iter()
+        .filter(|name| name != STAMP)
+        .map(|name| (Assets::get(&name).unwrap().data.len(), name.into_owned()))
+        .max()
+        .map(|(len, name)| (format!("/{name}"), len))
+        .expect("the console has files")
+}
+
+/// `n` pipelined `GET`s of `path`, the last closing the connection.
+fn pipelined_gets(path: &str, n: usize) -> Vec<u8> {
+    (0..n)
+        .map(|i| {
+            let close = if i + 1 == n {
+                "connection: close\r\n"
+            } else {
+                ""
+            };
+            format!("GET {path} HTTP/1.1\r\nhost: 127.0.0.1\r\n{close}\r\n")
+        })
+        .collect::<String>()
+        .into_bytes()
+}
+
+/// Answers to ask for so that they overfill both sockets' buffers many times over:
+/// the server's send buffer grows to at most `net.ipv4.tcp_wmem`'s 4 MiB by
+/// default.
+const ANSWER_BYTES: usize = 16 << 20;
+
+/// A connection to the server on `port` with a receive buffer of `recv_buffer`
+/// bytes that sent `requests` and was served: the start of the first answer has
+/// come (past `--max-connections`, the connection is closed at once, and this
+/// tries again).
+async fn served(port: u16, recv_buffer: u32, requests: &[u8]) -> tokio::net::TcpStream {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let socket = tokio::net::TcpSocket::new_v4().unwrap();
+        // Before connecting: the window it advertises follows from it.
+        socket.set_recv_buffer_size(recv_buffer).unwrap();
+        if let Ok(mut conn) = socket.connect(([127, 0, 0, 1], port).into()).await
+            && conn.write_all(requests).await.is_ok()
+        {
+            let mut head = [0u8; 12];
+            if conn.read_exact(&mut head).await.is_ok() {
+                assert_eq!(&head, b"HTTP/1.1 200", "the asset is served");
+                return conn;
+            }
+        }
+        assert!(Instant::now() < deadline, "never served");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Whether the kernel still has a socket of the server on `port` connected to
+/// `peer_port` on loopback (any state: an orphan closing keeps its buffers too),
+/// from `/proc/net/tcp`.
+fn server_socket_open(port: u16, peer_port: u16) -> bool {
+    let port_of = |field: &str| u16::from_str_radix(field.rsplit(':').next().unwrap(), 16).ok();
+    std::fs::read_to_string("/proc/net/tcp")
+        .unwrap()
+        .lines()
+        .skip(1)
+        .any(|line| {
+            let mut fields = line.split_whitespace().skip(1);
+            let (local, remote) = (fields.next().unwrap(), fields.next().unwrap());
+            port_of(local) == Some(port) && port_of(remote) == Some(peer_port)
+        })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_peer_that_reads_nothing_is_cut_after_the_write_stall_and_frees_its_slot() {
+    let port = free_port();
+    // One connection in all: the one that reads nothing holds it until it is cut.
+    let _server = spawn(
+        port,
+        &[
+            OsStr::new("--no-recording"),
+            OsStr::new("--max-connections"),
+            OsStr::new("1"),
+            OsStr::new("--idle-connection"),
+            OsStr::new("3600"),
+            OsStr::new("--write-stall"),
+            OsStr::new("1"),
+        ],
+    );
+    let (path, len) = largest_asset();
+    let n = ANSWER_BYTES / len + 1;
+    // A small receive buffer: the peer's window closes after a few kB.
+    let conn = served(port, 4096, &pipelined_gets(&path, n)).await;
+    let peer_port = conn.local_addr().unwrap().port();
+    assert!(server_socket_open(port, peer_port));
+    // From now on it reads nothing. The bound only turns a connection kept
+    // forever into a failure.
+    let start = Instant::now();
+    while server_socket_open(port, peer_port) {
+        assert!(
+            start.elapsed() < Duration::from_secs(15),
+            "the server, or its kernel, still holds a connection whose peer has read \
+             nothing for {:?}",
+            start.elapsed()
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    eprintln!("cut after {:?} of reading nothing", start.elapsed());
+    // Its slot, the only one, serves another client.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while let Err(e) = list_scenes(port).await {
+        assert!(Instant::now() < deadline, "the slot never freed: {e:?}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    // The peer, reading at last, finds its connection ended before the answers.
+    let mut conn = conn.into_std().unwrap();
+    conn.set_nonblocking(false).unwrap();
+    let mut got = 0;
+    let mut buf = vec![0u8; 1 << 16];
+    conn.set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    loop {
+        match conn.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(k) => got += k,
+        }
+    }
+    assert!(got < n * len, "{got} bytes: every answer came");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_peer_that_reads_slowly_is_served_whole_though_each_write_waits_past_the_limit() {
+    use tokio::io::AsyncReadExt;
+    let port = free_port();
+    let _server = spawn(
+        port,
+        &[
+            OsStr::new("--no-recording"),
+            OsStr::new("--write-stall"),
+            OsStr::new("0.5"),
+        ],
+    );
+    let (path, len) = largest_asset();
+    // More than the server's send buffer holds (megabytes on loopback): its
+    // writes wait for this reader.
+    let n = (4 << 20) / len + 1;
+    let mut conn = served(port, 16 << 10, &pipelined_gets(&path, n)).await;
+    // At most 16 KiB every 10 ms, about 1 MB/s: a write goes on only once the
+    // reader has taken a third of the server's send buffer, which takes it longer
+    // than the limit, but it takes bytes all the while, and that must keep the
+    // connection.
+    let start = Instant::now();
+    let mut got = 12;
+    let mut buf = vec![0u8; 16 << 10];
+    loop {
+        let k = tokio::time::timeout(Duration::from_secs(20), conn.read(&mut buf))
+            .await
+            .expect("the server goes on sending")
+            .expect("and does not cut the connection");
+        if k == 0 {
+            break;
+        }
+        got += k;
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(
+        got > n * len,
+        "{got} bytes of {n} answers of {len}: cut short"
+    );
+    eprintln!("{got} bytes in {:?}", start.elapsed());
 }

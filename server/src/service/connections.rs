@@ -1,5 +1,5 @@
-//! The server's connections: accepted by its own loop, counted, closed when idle,
-//! and severed when a shutdown runs out of time.
+//! The server's connections: accepted by its own loop, counted, closed when idle
+//! or when their peer stops reading, and severed when a shutdown runs out of time.
 //!
 //! - **Counted at accept.** Past [`ConnectionLimits::max`] open connections a new one
 //!   is accepted and closed at once (the peer sees the connection reset or closed),
@@ -27,6 +27,17 @@
 //!   a channel a client keeps between calls (tonic's client reconnects on the next
 //!   call). Streams are counted by [`CountStreams`], a layer that holds a count for
 //!   each request until its response body is dropped.
+//! - **A peer that reads nothing.** A write that waits for the peer (its socket's
+//!   send buffer full) while the peer takes (acknowledges) no byte for
+//!   [`ConnectionLimits::write_stall`] fails, and the connection closes with a
+//!   reset, dropping what it had not sent (closed the ordinary way, its socket
+//!   would stay in the kernel with those bytes while it tried to deliver them).
+//!   The idle timer cannot see this: a response already handed over (pipelined
+//!   HTTP/1.1 `GET`s of the console's bundle, or one large answer) holds no
+//!   stream, and hyper's HTTP/1.1 connection reads nothing while its write waits;
+//!   HTTP/2 keepalive does not run over HTTP/1.1. Without the limit such a
+//!   connection, and the megabytes of kernel buffers it fills, stays until the
+//!   peer reads or goes.
 //! - **Severed.** When the server's [`Severance`] is cut (a shutdown past its grace),
 //!   every connection's reads and writes fail at once, whatever the peer does: an
 //!   `Observe` stream whose client stopped reading, with the socket's buffers full,
@@ -42,8 +53,8 @@
 //!
 //! Files: this one, the limits and the accept loop ([`incoming`]); `peers`, the
 //! count per peer and the refusals' log; `conn`, an accepted connection's idle
-//! timer and severance; `streams`, the layer that counts a connection's streams;
-//! `deadline`, the layer that bounds a request's arrival.
+//! and write-stall timers and severance; `streams`, the layer that counts a
+//! connection's streams; `deadline`, the layer that bounds a request's arrival.
 
 use std::io;
 use std::sync::Arc;
@@ -85,6 +96,9 @@ pub struct ConnectionLimits {
     pub per_peer: usize,
     /// A connection with no open stream this long is closed (`--idle-connection`).
     pub idle: Duration,
+    /// A connection whose peer takes none of the bytes waiting for it this long is
+    /// closed (`--write-stall`).
+    pub write_stall: Duration,
     /// HTTP/2 PING interval on a connection.
     pub keepalive_interval: Duration,
     /// A connection whose PING is not answered within this is closed.
@@ -95,6 +109,13 @@ pub struct ConnectionLimits {
 /// is setting up keeps its connection; a socket that says nothing goes within a
 /// minute.
 pub const DEFAULT_IDLE_CONNECTION: Duration = Duration::from_secs(60);
+/// Default of [`ConnectionLimits::write_stall`], s. A write waits only while the
+/// socket's send buffer is full, and the connection is cut only when, all that
+/// time, the peer has taken (acknowledged) none of its bytes: a working link, even
+/// a slow or lossy one, takes some within seconds, so a peer that takes
+/// nothing for 30 s while the server has data for it is not reading. Long enough
+/// too for a laptop's network to come back after a roam.
+pub const DEFAULT_WRITE_STALL: Duration = Duration::from_secs(30);
 /// Default of [`ConnectionLimits::keepalive_interval`].
 pub const DEFAULT_KEEPALIVE_INTERVAL: Duration = Duration::from_secs(20);
 /// Default of [`ConnectionLimits::keepalive_timeout`]: a round trip of any working
@@ -259,6 +280,9 @@ pub fn incoming(
                 idle_for: limits.idle,
                 idle: Box::pin(tokio::time::sleep(limits.idle)),
                 armed_at: None,
+                stall_for: limits.write_stall,
+                stall: Box::pin(tokio::time::sleep(limits.write_stall)),
+                stalled: None,
                 severed: Box::pin(severance.0.clone().cancelled_owned()),
                 _slot: slot,
                 _peer: peer_slot,

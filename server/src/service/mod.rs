@@ -18,7 +18,8 @@
 //!
 //! What the server takes on at once is limited ([`capacity`]: sessions,
 //! connections, replays); its connections are accepted by its own loop
-//! ([`connections`]: counted, closed when idle, severed at shutdown).
+//! ([`connections`]: counted, closed when idle or when their peer stops reading,
+//! severed at shutdown).
 
 pub mod attach;
 pub mod auth;
@@ -109,6 +110,9 @@ pub struct ServeConfig {
     /// A connection with no open stream this long is closed; `None`:
     /// [`connections::DEFAULT_IDLE_CONNECTION`].
     pub idle_connection: Option<Duration>,
+    /// A connection whose peer takes none of the bytes waiting for it this long is
+    /// closed; `None`: [`connections::DEFAULT_WRITE_STALL`].
+    pub write_stall: Option<Duration>,
     /// Origins whose pages may call the server (CORS); empty: none but the
     /// server's own (the console it serves).
     pub cors_origins: Vec<String>,
@@ -257,6 +261,9 @@ pub async fn serve(
         idle: config
             .idle_connection
             .unwrap_or(connections::DEFAULT_IDLE_CONNECTION),
+        write_stall: config
+            .write_stall
+            .unwrap_or(connections::DEFAULT_WRITE_STALL),
         keepalive_interval: connections::DEFAULT_KEEPALIVE_INTERVAL,
         keepalive_timeout: connections::DEFAULT_KEEPALIVE_TIMEOUT,
     };
