@@ -88,7 +88,8 @@ struct ServeArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     max_replays: Option<u32>,
     /// Close a connection with no open stream after this many seconds (at most 86400).
-    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, value_parser = connection_seconds)]
+    #[arg(long, value_name = "SECONDS", value_parser = connection_seconds,
+          default_value_t = laparo_server::service::connections::DEFAULT_IDLE_CONNECTION.as_secs_f64())]
     idle_connection: f64,
     /// Close a connection whose peer takes none of the bytes waiting for it
     /// (reads nothing) for this many seconds (at most 86400).

@@ -21,8 +21,8 @@ pub(super) struct Framing {
     have: usize,
     /// Bytes of the current message still to come.
     remaining: u64,
-    /// Messages begun (their first byte read).
-    begun: u32,
+    /// Whether a message has begun (its first byte read).
+    begun: bool,
 }
 
 impl Framing {
@@ -39,10 +39,10 @@ impl Framing {
                 continue;
             }
             if self.have == 0 {
-                self.begun += 1;
-                if self.begun > 1 {
+                if self.begun {
                     return false;
                 }
+                self.begun = true;
             }
             let n = data.len().min(PREFIX - self.have);
             self.prefix[self.have..self.have + n].copy_from_slice(&data[..n]);
