@@ -415,3 +415,39 @@ async fn a_peer_that_reads_slowly_is_served_whole_though_each_write_waits_past_t
     );
     eprintln!("{got} bytes in {:?}", start.elapsed());
 }
+
+/// A peer that sends one `GET` of the console's largest file, asking the server to
+/// close after it, and then reads nothing: the answer fits in the server's send
+/// buffer, so no write waits and the write-stall timer never runs; the server closes
+/// the connection as asked, and the kernel is left with an orphaned socket holding
+/// the unsent answer. That orphan must go within the write-stall limit too, not
+/// after the minutes the kernel's own zero-window probing takes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_answer_left_unread_after_the_connection_closes_goes_with_the_write_stall() {
+    let port = free_port();
+    let _server = spawn(
+        port,
+        &[
+            OsStr::new("--no-recording"),
+            OsStr::new("--idle-connection"),
+            OsStr::new("3600"),
+            OsStr::new("--write-stall"),
+            OsStr::new("1"),
+        ],
+    );
+    let (path, _) = largest_asset();
+    let conn = served(port, 4096, &pipelined_gets(&path, 1)).await;
+    let peer_port = conn.local_addr().unwrap().port();
+    let start = Instant::now();
+    while server_socket_open(port, peer_port) {
+        assert!(
+            start.elapsed() < Duration::from_secs(15),
+            "the kernel still holds the server's socket, with the answer its peer \
+             reads nothing of, {:?} after the answer began",
+            start.elapsed()
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    eprintln!("gone after {:?} of reading nothing", start.elapsed());
+    drop(conn);
+}

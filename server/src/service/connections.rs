@@ -37,7 +37,12 @@
 //!   stream, and hyper's HTTP/1.1 connection reads nothing while its write waits;
 //!   HTTP/2 keepalive does not run over HTTP/1.1. Without the limit such a
 //!   connection, and the megabytes of kernel buffers it fills, stays until the
-//!   peer reads or goes.
+//!   peer reads or goes. The kernel holds the same limit for what the server
+//!   has written (`TCP_USER_TIMEOUT`, [`conn::hand_over_within`]): an answer that
+//!   fits in the send buffer needs no waiting write, and once the server has
+//!   closed such a connection (a `connection: close` request) its orphaned
+//!   socket, with the answer, goes when the peer has taken none of it for the
+//!   limit, not after the minutes of the kernel's own zero-window probing.
 //! - **Severed.** When the server's [`Severance`] is cut (a shutdown past its grace),
 //!   every connection's reads and writes fail at once, whatever the peer does: an
 //!   `Observe` stream whose client stopped reading, with the socket's buffers full,
@@ -268,6 +273,7 @@ pub fn incoming(
                 continue;
             };
             let _ = tcp.set_nodelay(true);
+            conn::hand_over_within(&tcp, limits.write_stall);
             let conn = Conn {
                 io: tcp,
                 info: ConnInfo {

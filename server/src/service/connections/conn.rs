@@ -244,6 +244,40 @@ impl AsyncWrite for Conn {
     }
 }
 
+/// Has the kernel give up on `tcp` once bytes written to it have waited `limit`
+/// for the peer (`TCP_USER_TIMEOUT`, ms): unacknowledged, or unsent behind a
+/// window the peer keeps shut (Linux counts that from its first zero-window probe
+/// and starts again when the window opens, so a slow reader is kept). It holds
+/// after the server closes the socket, where the write-stall timer of [`Conn`]
+/// cannot: an orphan with an answer its peer never reads goes at the limit. A
+/// link that delivers nothing for the limit is cut as well; it stays at least the
+/// 30 s default (`--write-stall`), and a station that hears nothing for its own
+/// 5 s has lost its instruments by then. Rounded up to whole ms and capped at
+/// what the option holds; a system that refuses the option leaves the kernel's
+/// own bound, minutes.
+#[cfg(target_os = "linux")]
+pub(super) fn hand_over_within(tcp: &TcpStream, limit: Duration) {
+    use std::os::fd::AsRawFd;
+    let ms = limit.as_nanos().div_ceil(1_000_000);
+    let ms = libc::c_uint::try_from(ms).unwrap_or(libc::c_uint::MAX);
+    // SAFETY: `TCP_USER_TIMEOUT` reads one unsigned int, from `ms`, for the
+    // connection's own open descriptor.
+    let _ = unsafe {
+        libc::setsockopt(
+            tcp.as_raw_fd(),
+            libc::IPPROTO_TCP,
+            libc::TCP_USER_TIMEOUT,
+            (&ms as *const libc::c_uint).cast(),
+            std::mem::size_of::<libc::c_uint>() as libc::socklen_t,
+        )
+    };
+}
+
+/// Has the kernel give up on `tcp` after `limit`: not offered here, so the
+/// kernel's own bound holds once the server has closed the socket.
+#[cfg(not(target_os = "linux"))]
+pub(super) fn hand_over_within(_tcp: &TcpStream, _limit: Duration) {}
+
 /// Bytes written to `tcp` that its peer has not acknowledged yet (`SIOCOUTQ`);
 /// `None` where the system does not tell.
 #[cfg(target_os = "linux")]
