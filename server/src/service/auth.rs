@@ -26,6 +26,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use laparo_proto::text::printable;
+
+use super::limits::{MAX_INSTRUMENTS, MAX_NAME_BYTES};
 use serde::Deserialize;
 use tonic::{Request, Status};
 
@@ -97,8 +99,24 @@ struct TokenEntry {
 /// What is wrong with a list of tokens; `tokens[k]` counts entries from 0.
 #[derive(Debug, thiserror::Error)]
 pub enum TokenListError {
-    #[error("{0}")]
-    Toml(#[from] toml::de::Error),
+    /// The file is not the TOML of a tokens list: where, and what is wrong,
+    /// without the line itself, which may hold a token.
+    #[error("line {line}, column {column}: {message}")]
+    Toml {
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("tokens[{index}].token: at most {MAX_TOKEN_BYTES} bytes (is {len})")]
+    TooLong { index: usize, len: usize },
+    #[error("tokens[{index}].{field}: at most {MAX_NAME_BYTES} bytes (is {len})")]
+    NameTooLong {
+        index: usize,
+        field: &'static str,
+        len: usize,
+    },
+    #[error("tokens[{index}].instruments: at most {MAX_INSTRUMENTS} (is {len})")]
+    TooManyInstruments { index: usize, len: usize },
     #[error("tokens[{index}].token: at least 8 characters")]
     TooShort { index: usize },
     #[error(
@@ -126,6 +144,29 @@ pub enum TokensError {
 
 /// Largest tokens file read, bytes: 1 MiB, some ten thousand tokens.
 pub const MAX_TOKENS_BYTES: u64 = 1 << 20;
+
+/// Longest token, bytes: 1 KiB holds any random secret many times over, and a
+/// longer one would be refused by the HTTP/2 header limits before it is read.
+pub const MAX_TOKEN_BYTES: usize = 1024;
+
+/// [`TokenListError::Toml`] for `e`, read from `text`: toml's own rendering quotes
+/// the offending line, token and all, into the server's log; where it is and what
+/// is wrong suffice to mend it.
+fn toml_error(text: &str, e: &toml::de::Error) -> TokenListError {
+    let (line, column) = e.span().map_or((0, 0), |span| {
+        let before = &text[..text.floor_char_boundary(span.start)];
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        (
+            before.matches('\n').count() + 1,
+            before[line_start..].chars().count() + 1,
+        )
+    });
+    TokenListError::Toml {
+        line,
+        column,
+        message: e.message().trim_end().to_string(),
+    }
+}
 
 /// The tokens a server accepts.
 #[derive(Clone, Debug, Default)]
@@ -158,7 +199,7 @@ impl Tokens {
     /// clients send: a space, a control character or a non-ASCII letter would make
     /// a token no client can present) and listed once.
     pub fn parse(text: &str) -> Result<Self, TokenListError> {
-        let file: TokensFile = toml::from_str(text)?;
+        let file: TokensFile = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         if file.tokens.is_empty() {
             return Err(TokenListError::Empty);
         }
@@ -169,6 +210,28 @@ impl Tokens {
             }
             if t.token.len() < 8 {
                 return Err(TokenListError::TooShort { index: k });
+            }
+            if t.token.len() > MAX_TOKEN_BYTES {
+                let len = t.token.len();
+                return Err(TokenListError::TooLong { index: k, len });
+            }
+            // A name travels in statuses (gRPC's `grpc-message` header), events
+            // and the recording: held to the limit of every other name.
+            let long = |field, len| TokenListError::NameTooLong {
+                index: k,
+                field,
+                len,
+            };
+            if let Some(name) = t.name.as_ref().filter(|n| n.len() > MAX_NAME_BYTES) {
+                return Err(long("name", name.len()));
+            }
+            let instruments = t.instruments.as_deref().unwrap_or_default();
+            if instruments.len() > MAX_INSTRUMENTS {
+                let len = instruments.len();
+                return Err(TokenListError::TooManyInstruments { index: k, len });
+            }
+            if let Some(i) = instruments.iter().find(|i| i.len() > MAX_NAME_BYTES) {
+                return Err(long("instruments", i.len()));
             }
             // The name is only ever shown (in refusals, events and logs), so it is
             // kept escaped: a control character in the operator's file reaches no
@@ -292,6 +355,43 @@ mod tests {
             e.message(),
             "creating a session needs an instructor token; `Bob \\u{1b}[31mred\\u{202e}` is a trainee"
         );
+    }
+
+    #[test]
+    fn names_and_tokens_past_their_limits_are_refused_naming_them() {
+        let ok = entry("a-long-random-string");
+        let named = |name: &str| format!("{ok}name = {name:?}\n");
+        assert!(Tokens::parse(&named(&"n".repeat(MAX_NAME_BYTES))).is_ok());
+        let e = Tokens::parse(&named(&"n".repeat(MAX_NAME_BYTES + 1))).unwrap_err();
+        assert_eq!(e.to_string(), "tokens[0].name: at most 256 bytes (is 257)");
+        let e = Tokens::parse(&entry(&"t".repeat(MAX_TOKEN_BYTES + 1))).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "tokens[0].token: at most 1024 bytes (is 1025)"
+        );
+        assert!(Tokens::parse(&entry(&"t".repeat(MAX_TOKEN_BYTES))).is_ok());
+        let listed = |names: Vec<String>| format!("{ok}instruments = {names:?}\n");
+        let e = Tokens::parse(&listed(vec!["i".repeat(MAX_NAME_BYTES + 1)])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "tokens[0].instruments: at most 256 bytes (is 257)"
+        );
+        let many = (0..=MAX_INSTRUMENTS).map(|i| format!("i{i}")).collect();
+        let e = Tokens::parse(&listed(many)).unwrap_err();
+        assert_eq!(e.to_string(), "tokens[0].instruments: at most 64 (is 65)");
+    }
+
+    #[test]
+    fn a_syntax_error_says_where_without_quoting_the_token() {
+        let text = "# tokens\n[[tokens]]\ntoken = \"s3cr3t-instructor-token\" role = \"x\"\n";
+        let e = Tokens::parse(text).unwrap_err().to_string();
+        assert!(e.starts_with("line 3, column "), "{e}");
+        assert!(!e.contains("s3cr3t"), "{e}");
+        let e = Tokens::parse("[[tokens]]\ntoken = \"s3cr3t-\\q-token\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("line 2, column "), "{e}");
+        assert!(!e.contains("s3cr3t"), "{e}");
     }
 
     #[test]
