@@ -203,6 +203,27 @@ async fn a_recording_is_listed_and_replayed_as_recorded() {
     let sent: Vec<v1::ObserveMessage> = got[1..].iter().map(|(_, m)| m.clone()).collect();
     assert!(sent == expected_from(&file, info.duration_s));
     assert_eq!(sent.iter().filter_map(bits).count(), 1);
+    // From the duration as a summary prints it, to the millisecond: rounded, it
+    // may lie up to half a millisecond past the last tick, and must give the same.
+    let printed = info.duration_s + 0.4e-3;
+    let (got, end) = replay_all(&ch, None, replay_request(&name, Some(50.0), Some(printed)))
+        .await
+        .unwrap();
+    end.unwrap();
+    let from_printed: Vec<v1::ObserveMessage> = got[1..].iter().map(|(_, m)| m.clone()).collect();
+    assert_eq!(
+        from_printed.iter().filter_map(bits).collect::<Vec<_>>(),
+        sent.iter().filter_map(bits).collect::<Vec<_>>(),
+        "a replay from {printed} s, the printed end, shows the last tick"
+    );
+    // Past that, the refusal gives the duration as printed.
+    let past = recordings
+        .replay(replay_request(&name, None, Some(info.duration_s + 1e-3)))
+        .await
+        .expect_err("a start past the end is refused");
+    assert_eq!(past.code(), Code::OutOfRange);
+    let lasts = format!("which lasts {:.3} s", info.duration_s);
+    assert!(past.message().ends_with(&lasts), "{}", past.message());
 
     // Every bad request gets its code.
     let code = |r: Result<_, tonic::Status>| r.err().map(|s: tonic::Status| s.code());

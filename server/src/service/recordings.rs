@@ -205,6 +205,13 @@ struct Opened {
     held_s: Option<f64>,
 }
 
+/// How far past a recording's last tick a start offset may be, s: half the
+/// millisecond its duration is given to (`laparo replay`, the console and the
+/// refusal below print it so). A recording's time is the sum of its ticks, so a
+/// 3.4 s recording lasts 3.399999999999993 s, and its printed duration typed back
+/// must start its replay (at its last tick) rather than be refused.
+const END_SLACK_S: f64 = 0.5e-3;
+
 /// Opens `name` in `dir` for a replay by `caller` from `offset`.
 fn open_for_replay(
     registry: &Registry,
@@ -249,11 +256,10 @@ fn open_for_replay(
         }
     }
     let duration = recording.duration_s().map_err(status)?;
-    if offset > duration {
+    if offset > duration + END_SLACK_S {
         return Err(Status::out_of_range(format!(
-            "the start offset {} s is past the end of `{name}`, which lasts {} s",
+            "the start offset {} s is past the end of `{name}`, which lasts {duration:.3} s",
             Number(offset),
-            Number(duration)
         )));
     }
     let scene = recording.scene().map_err(status)?;
