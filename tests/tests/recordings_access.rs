@@ -171,11 +171,6 @@ async fn a_recorded_session_without_room_for_its_file_is_refused_naming_the_limi
     })
     .await;
     let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
-    let create = |record| v1::CreateSessionRequest {
-        scene: "default".into(),
-        idle_timeout_s: None,
-        record: Some(record),
-    };
     let refused = sessions.create_session(create(true)).await.unwrap_err();
     assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
     assert!(
@@ -227,11 +222,20 @@ async fn a_server_that_records_nothing_says_so() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn stations_and_observers_joining_after_the_recorder_failed_are_told() {
-    // The recordings "directory" is a file: the recorder cannot create its file.
+    // A recordings directory whose path leaves no room for a file name: it is a
+    // directory with room (the session starts, recorded), and the recorder cannot
+    // create its file in it (`ENAMETOOLONG`: a path of more than 4,095 bytes), as a
+    // recorder fails whose disk fails it.
     let blocker = std::env::temp_dir().join(format!("laparo-blocker-{}", std::process::id()));
-    std::fs::write(&blocker, b"not a directory").unwrap();
+    let mut dir = blocker.clone();
+    while dir.as_os_str().len() < 3800 {
+        dir.push("d".repeat(200));
+    }
+    dir.push("d".repeat(4080 - dir.as_os_str().len() - 1));
+    assert_eq!(dir.as_os_str().len(), 4080);
+    std::fs::create_dir_all(&dir).unwrap();
     let server = TestServer::start(ServeConfig {
-        recordings: Some(blocker.join("recordings")),
+        recordings: Some(dir),
         ..ServeConfig::default()
     })
     .await;
@@ -302,5 +306,53 @@ async fn stations_and_observers_joining_after_the_recorder_failed_are_told() {
     );
     drop((a, observer));
     server.shutdown().await.unwrap();
-    let _ = std::fs::remove_file(&blocker);
+    let _ = std::fs::remove_dir_all(&blocker);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recorded_session_where_the_recordings_directory_is_a_file_is_refused() {
+    // A `--recordings` that names a file, or a loop of links: before the check,
+    // the session answered with the name of a recording its recorder failed to
+    // create a tick later.
+    let base = std::env::temp_dir().join(format!("laparo-not-a-dir-{}", std::process::id()));
+    std::fs::create_dir_all(&base).unwrap();
+    let file = base.join("file");
+    std::fs::write(&file, b"not a directory").unwrap();
+    let looped = base.join("loop");
+    std::os::unix::fs::symlink(&looped, &looped).unwrap();
+    for (dir, what) in [
+        (file, "is not a directory"),
+        (looped, "cannot be made or reached"),
+    ] {
+        let server = TestServer::start(ServeConfig {
+            recordings: Some(dir),
+            ..ServeConfig::default()
+        })
+        .await;
+        let mut sessions = v1::sessions_client::SessionsClient::new(server.channel().await);
+        let refused = sessions.create_session(create(true)).await.unwrap_err();
+        assert_eq!(refused.code(), Code::FailedPrecondition, "{refused:?}");
+        let message = refused.message();
+        assert!(
+            message.contains("(--recordings) ") && message.contains(what),
+            "{message}"
+        );
+        assert!(
+            !message.contains("laparo-not-a-dir"),
+            "no server path: {message}"
+        );
+        let session = sessions.create_session(create(false)).await.unwrap();
+        assert!(session.into_inner().recording_file.is_none());
+        server.shutdown().await.unwrap();
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A session of the default scene, recorded or not.
+fn create(record: bool) -> v1::CreateSessionRequest {
+    v1::CreateSessionRequest {
+        scene: "default".into(),
+        idle_timeout_s: None,
+        record: Some(record),
+    }
 }

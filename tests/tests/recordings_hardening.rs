@@ -422,48 +422,40 @@ async fn only_regular_files_of_the_directory_are_served_and_nothing_echoes_escap
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
+async fn a_recordings_directory_removed_is_made_again_and_one_replaced_is_refused_by_name() {
     let (server, ch, dir) = recording_server("gone").await;
     // An answered call means the server runs, so it has made its recordings
-    // directory (serving starts after that); then the directory goes away and the
-    // file cannot be made.
+    // directory (serving starts after that); then the directory goes away.
     let _ = recordings(&ch)
         .list_recordings(v1::ListRecordingsRequest {})
         .await;
     std::fs::remove_dir_all(&dir).unwrap();
     let mut sessions = v1::sessions_client::SessionsClient::new(ch.clone());
+    let create = v1::CreateSessionRequest {
+        scene: "default".into(),
+        idle_timeout_s: None,
+        record: Some(true),
+    };
+    // Removed, it is made again, and the session is recorded there.
     let info = sessions
-        .create_session(v1::CreateSessionRequest {
-            scene: "default".into(),
-            idle_timeout_s: None,
-            record: Some(true),
-        })
+        .create_session(create.clone())
         .await
         .unwrap()
         .into_inner();
-    let get = v1::GetSessionRequest {
-        session_id: info.session_id.clone(),
-    };
-    let error = tokio::time::timeout(WAIT, async {
-        loop {
-            let now = sessions
-                .get_session(get.clone())
-                .await
-                .unwrap()
-                .into_inner();
-            if let Some(e) = now.recording_error {
-                return e;
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    })
-    .await
-    .expect("the recorder reports its failure");
-    assert!(error.contains(&info.session_id), "{error}");
-    assert!(error.contains(".mcap"), "{error}");
-    assert!(!error.contains(&dir.display().to_string()), "{error}");
-    assert!(!error.contains("/tmp"), "{error}");
-    // Listing a directory that is gone says so, without its path.
+    let file = info.recording_file.expect("recorded");
+    assert!(
+        dir.join(&file).is_file(),
+        "{file} in the directory made again"
+    );
+    // Replaced by a file, it cannot be: the session is refused, naming the
+    // flag and not the server's path.
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::write(&dir, b"not a directory").unwrap();
+    let status = sessions.create_session(create).await.unwrap_err();
+    assert_eq!(status.code(), Code::FailedPrecondition);
+    assert!(status.message().contains("--recordings"), "{status:?}");
+    assert!(!status.message().contains("/tmp"), "{status:?}");
+    // Listing a directory that is not one says so, without its path.
     let status = recordings(&ch)
         .list_recordings(v1::ListRecordingsRequest {})
         .await
@@ -474,6 +466,7 @@ async fn a_recording_that_cannot_be_created_is_reported_by_its_name_alone() {
         "{status:?}"
     );
     server.shutdown().await.unwrap();
+    let _ = std::fs::remove_file(&dir);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

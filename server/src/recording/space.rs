@@ -18,6 +18,21 @@ use std::path::Path;
 /// worth, and is refused on one that has all but run out.
 pub const MIN_FREE_BYTES: u64 = 64 << 20;
 
+/// Whether `dir` can take a new recording's file: made when missing (so that one
+/// removed while the server runs comes back), then a directory. `Err` says what it
+/// is instead, without the path (clients are told, and know no server paths): a
+/// `--recordings` naming a file, a dangling link or a loop of links would
+/// otherwise let a session answer that it records, and its recorder fail a tick
+/// later.
+pub fn usable_dir(dir: &Path) -> Result<(), String> {
+    let _ = std::fs::create_dir_all(dir);
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err("is not a directory".into()),
+        Err(e) => Err(format!("cannot be made or reached: {e}")),
+    }
+}
+
 /// Bytes an unprivileged process may still write on the file system of `dir`
 /// (`statvfs`: available blocks times the fragment size).
 pub fn free_bytes(dir: &Path) -> io::Result<u64> {
@@ -49,5 +64,20 @@ mod tests {
         assert_eq!(missing.kind(), io::ErrorKind::NotFound);
         let nul = free_bytes(Path::new("a\0b")).unwrap_err();
         assert_eq!(nul.kind(), io::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn a_directory_is_made_when_missing_and_a_file_or_a_loop_is_not_one() {
+        let base = tempfile::tempdir().unwrap();
+        let made = base.path().join("a/b");
+        assert_eq!(usable_dir(&made), Ok(()));
+        assert!(made.is_dir());
+        let file = base.path().join("file");
+        std::fs::write(&file, b"x").unwrap();
+        assert_eq!(usable_dir(&file), Err("is not a directory".into()));
+        let looped = base.path().join("loop");
+        std::os::unix::fs::symlink(&looped, &looped).unwrap();
+        let e = usable_dir(&looped).unwrap_err();
+        assert!(e.starts_with("cannot be made or reached: "), "{e}");
     }
 }

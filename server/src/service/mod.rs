@@ -169,10 +169,14 @@ pub async fn serve(
     let hosts = config.tokens.is_none().then_some(hosts);
     let catalog = SceneCatalog::load(config.scene_dir.as_deref())?;
     if let Some(dir) = &config.recordings
-        && let Err(e) = std::fs::create_dir_all(dir)
+        && let Err(what) = crate::recording::space::usable_dir(dir)
     {
-        // Sessions still run; each reports that it cannot record.
-        tracing::warn!(dir = %dir.display(), "cannot create the recordings directory: {e}");
+        // Unrecorded sessions still run; a recorded one is refused, naming it.
+        tracing::warn!(
+            dir = %dir.display(),
+            "the recordings directory {what}: sessions that record are refused \
+             until it is mended"
+        );
     }
     let registry = Arc::new(
         Registry::new(catalog, config.idle_timeout, config.recordings.clone())

@@ -213,10 +213,19 @@ impl Registry {
         Ok(session)
     }
 
-    /// Whether `dir`'s file system has room for a new recording (see [`space`]);
-    /// refused `RESOURCE_EXHAUSTED` naming the limit if not. A file system that
-    /// cannot be asked is left to the recorder, which says what fails.
+    /// Whether `dir` can take a new recording (see [`space`]): a directory, refused
+    /// `FAILED_PRECONDITION` naming `--recordings` if not, whose file system has
+    /// room, refused `RESOURCE_EXHAUSTED` naming the limit if not. A file system
+    /// that cannot be asked is left to the recorder, which says what fails.
     fn room_for_recording(&self, dir: &Path, scene: &str) -> Result<(), Status> {
+        if let Err(what) = space::usable_dir(dir) {
+            return Err(Status::failed_precondition(format!(
+                "cannot record a session of scene `{}`: the server's recordings \
+                 directory (--recordings) {what}; its operator must mend it, or \
+                 create the session with record false",
+                printable(scene),
+            )));
+        }
         let Ok(free) = space::free_bytes(dir) else {
             return Ok(());
         };
