@@ -204,20 +204,37 @@ fn a_demo_that_cannot_record_fails_and_names_no_recording() {
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("a-file");
     std::fs::write(&file, b"not a folder").unwrap();
-    // A file as the folder: refused before the demo starts.
-    let stderr = fails(&[
-        "demo".as_ref(),
-        "--seconds".as_ref(),
-        "0.5".as_ref(),
-        "--recordings".as_ref(),
-        file.as_os_str(),
-    ]);
-    assert!(stderr.contains("not a folder"), "{stderr}");
-    // A folder inside that file cannot be made: the demo runs, the recorder fails,
-    // and the run ends saying the session was not recorded, naming the cause.
+    // A file as the folder, or a folder inside a file: refused before the demo
+    // starts, saying why.
+    for (recordings, why) in [
+        (file.clone(), "is not a directory"),
+        (
+            file.join("sub"),
+            "cannot be made or reached: Not a directory",
+        ),
+    ] {
+        let stderr = fails(&[
+            "demo".as_ref(),
+            "--seconds".as_ref(),
+            "0.5".as_ref(),
+            "--recordings".as_ref(),
+            recordings.as_os_str(),
+        ]);
+        assert!(stderr.contains(why), "{stderr}");
+        assert!(stderr.contains("cannot be recorded in it"), "{stderr}");
+    }
+    // A folder whose path leaves no room for a file name (`ENAMETOOLONG` past 4,095
+    // bytes) passes that check: the demo runs, the recorder fails, and the run ends
+    // saying the session was not recorded, naming the cause.
+    let mut long = dir.clone();
+    while long.as_os_str().len() < 3800 {
+        long.push("d".repeat(200));
+    }
+    long.push("d".repeat(4080 - long.as_os_str().len() - 1));
+    std::fs::create_dir_all(&long).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
         .args(["demo", "--seconds", "0.5", "--recordings"])
-        .arg(file.join("sub"))
+        .arg(&long)
         .output()
         .expect("laparo runs");
     let (stdout, stderr) = (
@@ -226,7 +243,7 @@ fn a_demo_that_cannot_record_fails_and_names_no_recording() {
     );
     assert_eq!(out.status.code(), Some(1), "{stdout}\n{stderr}");
     assert!(stdout.contains("recording            none:"), "{stdout}");
-    assert!(stdout.contains("Not a directory"), "{stdout}");
+    assert!(stdout.contains("File name too long"), "{stdout}");
     assert!(!stdout.contains("compression stream"), "{stdout}");
     assert!(stderr.contains("the session was not recorded"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();

@@ -42,10 +42,11 @@ pub async fn run(args: DemoArgs) -> Result<(), BoxError> {
         .recordings
         .clone()
         .unwrap_or_else(|| PathBuf::from("recordings"));
-    // A folder that cannot be one is said now, not after the demo as a recorder error.
-    if recordings.exists() && !recordings.is_dir() {
+    // A folder that cannot be one is said now, as the server would refuse the
+    // recorded session: made when missing, and a directory.
+    if let Err(what) = laparo_server::recording::space::usable_dir(&recordings) {
         return Err(format!(
-            "--recordings {}: not a folder, so the session cannot be recorded in it",
+            "--recordings {}: {what}, so the session cannot be recorded in it",
             recordings.display()
         )
         .into());
