@@ -26,8 +26,9 @@
 //! Every record is an opcode (u8), a body length (u64) and the body; integers are
 //! little-endian, a string is a u32 length and UTF-8 bytes, a map a u32 byte
 //! length and its pairs. A chunk's CRC is the CRC-32 of its uncompressed records;
-//! the data section's and the summary's CRCs are written as 0, which the format
-//! defines as "not computed".
+//! the data section's CRC is written as 0, which the format defines as "not
+//! computed"; the summary's is computed, so that a recovery can trust the chunk
+//! index of a file damaged later ([`super::intact_summary`]).
 
 use std::io::{self, Read, Seek, SeekFrom, Write};
 
@@ -92,6 +93,9 @@ pub struct ChunkedWriter<W: Read + Write + Seek> {
     failed: bool,
     /// The stream was moved off the end by a read back (at finish).
     displaced: bool,
+    /// The CRC of the summary section so far, from its first byte (`None` before
+    /// it): written in the footer, so that a recovery can trust the chunk index.
+    summary_crc: Option<crc32fast::Hasher>,
 }
 
 fn put_str(b: &mut Vec<u8>, s: &str) {
@@ -142,6 +146,7 @@ impl<W: Read + Write + Seek> ChunkedWriter<W> {
             bounds: None,
             failed: false,
             displaced: false,
+            summary_crc: None,
         })
     }
 
@@ -162,6 +167,9 @@ impl<W: Read + Write + Seek> ChunkedWriter<W> {
             return Err(e);
         }
         self.at += bytes.len() as u64;
+        if let Some(crc) = &mut self.summary_crc {
+            crc.update(bytes);
+        }
         Ok(())
     }
 
@@ -375,6 +383,7 @@ impl<W: Read + Write + Seek> ChunkedWriter<W> {
         self.emit(&data_end)?;
         let data_end_at = self.at - data_end.len() as u64;
         let summary_start = self.at;
+        self.summary_crc = Some(crc32fast::Hasher::new());
         let mut groups: Vec<(u8, u64, u64)> = Vec::new();
         let mut b = Vec::new();
         // Schemas, then channels, as they were added.
@@ -488,11 +497,19 @@ impl<W: Read + Write + Seek> ChunkedWriter<W> {
             body.extend_from_slice(&length.to_le_bytes());
             put_record(&mut b, op::SUMMARY_OFFSET, &body);
         }
-        let mut body = Vec::with_capacity(20);
-        body.extend_from_slice(&summary_start.to_le_bytes());
-        body.extend_from_slice(&offsets_start.to_le_bytes());
-        body.extend_from_slice(&0u32.to_le_bytes());
-        put_record(&mut b, op::FOOTER, &body);
+        // The footer: its CRC covers the summary up to and including
+        // `summary_offset_start`, so it is written field by field.
+        b.push(op::FOOTER);
+        b.extend_from_slice(&20u64.to_le_bytes());
+        b.extend_from_slice(&summary_start.to_le_bytes());
+        b.extend_from_slice(&offsets_start.to_le_bytes());
+        let mut crc = self
+            .summary_crc
+            .take()
+            .expect("set where the summary starts");
+        crc.update(&b);
+        let crc = crc.finalize();
+        b.extend_from_slice(&crc.to_le_bytes());
         b.extend_from_slice(MAGIC);
         self.emit(&b)
     }

@@ -154,3 +154,52 @@ fn a_message_on_an_unknown_channel_is_refused_and_writes_nothing() {
     }
     assert!(w.add_channel(s, "/a", "protobuf").is_err());
 }
+
+#[test]
+fn the_summary_crc_covers_the_summary_and_the_footer_up_to_its_offsets() {
+    let (bytes, _) = written(5, 30);
+    // MCAP: the CRC-32 of every byte from `summary_start` through the footer's
+    // `summary_offset_start`; computed (not the 0 of "not computed").
+    let crc_at = bytes.len() - MAGIC.len() - 4;
+    let stored = u32::from_le_bytes(bytes[crc_at..crc_at + 4].try_into().unwrap());
+    let summary_start = u64::from_le_bytes(bytes[crc_at - 16..crc_at - 8].try_into().unwrap());
+    assert_ne!(stored, 0);
+    assert_eq!(
+        stored,
+        crc32fast::hash(&bytes[summary_start as usize..crc_at])
+    );
+}
+
+/// Reads `bytes` with the mcap crate's linear reader (chunks whole), checking the
+/// summary's CRC; the first error.
+fn linear_read_checking_the_summary_crc(bytes: &[u8]) -> Result<(), mcap::McapError> {
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let options = LinearReaderOptions::default()
+        .with_record_length_limit(bytes.len())
+        .with_emit_chunks(true)
+        .with_validate_summary_section_crc(true);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut rest = bytes;
+    while let Some(event) = reader.next_event() {
+        if let LinearReadEvent::ReadRequest(need) = event? {
+            let n = need.min(rest.len());
+            reader.insert(n).copy_from_slice(&rest[..n]);
+            reader.notify_read(n);
+            rest = &rest[n..];
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn the_mcap_crate_checks_the_summary_crc_and_finds_it_right() {
+    let (bytes, _) = written(5, 30);
+    linear_read_checking_the_summary_crc(&bytes).unwrap();
+    // One byte of the summary changed: the crate's reader refuses it.
+    let crc_at = bytes.len() - MAGIC.len() - 4;
+    let summary_start = u64::from_le_bytes(bytes[crc_at - 16..crc_at - 8].try_into().unwrap());
+    let mut damaged = bytes.clone();
+    damaged[summary_start as usize + 20] ^= 0x10;
+    let e = linear_read_checking_the_summary_crc(&damaged).unwrap_err();
+    assert!(matches!(e, mcap::McapError::BadSummaryCrc { .. }), "{e}");
+}
