@@ -84,6 +84,13 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
             for schema in &r.damaged_schemas {
                 say!("  damaged {schema}");
             }
+            if r.reframed_chunks > 0 {
+                say!(
+                    "  {} chunks whose length or opcode was damaged were framed by the file's \
+                     chunk index and kept whole (their CRC matched)",
+                    r.reframed_chunks
+                );
+            }
             Ok(())
         }
     }

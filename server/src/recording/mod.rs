@@ -59,6 +59,7 @@
 
 pub mod chunked;
 pub mod foxglove_scene;
+pub mod intact_summary;
 pub mod list;
 pub mod lock;
 pub mod reader;

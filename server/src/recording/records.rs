@@ -107,7 +107,7 @@ type Split<'a> = (u8, &'a [u8], usize);
 
 /// Splits `buf[at..]` into its first record's opcode and body, and where the next
 /// record starts. `Ok(None)` at the end of `buf`.
-fn frame(buf: &[u8], at: usize) -> Result<Option<Split<'_>>, String> {
+pub(super) fn frame(buf: &[u8], at: usize) -> Result<Option<Split<'_>>, String> {
     let rest = &buf[at..];
     if rest.is_empty() {
         return Ok(None);

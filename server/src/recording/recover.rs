@@ -11,6 +11,13 @@
 //! that does not match, data that does not decompress) is left out and the walk
 //! goes on after it, since its stated length still frames the records that follow;
 //! messages of a channel that only such a chunk declared are left out too.
+//! A finished file (one with its footer) whose summary section passes the
+//! footer's CRC ([`super::intact_summary`]) is walked with its chunk index: a
+//! chunk is framed by its index entry, so one whose own length or opcode was
+//! damaged is still read (and kept when its CRC matches), a record damaged so
+//! that nothing after it frames is stepped over to the next indexed chunk
+//! ([`Recovery::damaged_spans`]), and a schema or channel lost with it is
+//! written from the summary's copy.
 //! Schema records, written outside chunks with no CRC, are checked by decoding
 //! them; a damaged one is written from this build's descriptors and reported
 //! ([`Recovery::damaged_schemas`]).
@@ -33,11 +40,12 @@ use std::path::Path;
 
 use foxglove::Encode;
 use foxglove::schemas::SceneUpdate;
-use mcap::records::Record;
+use mcap::records::{Channel, Record, op};
 use mcap::{Compression, MAGIC, McapError, WriteOptions};
 
 use super::METADATA_NAME;
-use super::records::{chunk_records, frame_at, read_record};
+use super::intact_summary::{IntactSummary, intact_summary};
+use super::records::{Framed, chunk_records, frame_at, read_record};
 use super::source::{Follow, Source};
 use crate::engine::scene::{file_kind, same_file};
 use crate::output::{WholeFile, part_path};
@@ -64,6 +72,13 @@ pub struct Recovery {
     /// Schema records whose data was damaged, each with what was done about it
     /// ([`checked_schema`]).
     pub damaged_schemas: Vec<String>,
+    /// Spans of a finished file stepped over because a record in them was damaged
+    /// where its length no longer framed what follows, each with why: the file's
+    /// checked summary said where the next chunk starts.
+    pub damaged_spans: Vec<String>,
+    /// Chunks whose own opcode or length was damaged, framed by the file's checked
+    /// chunk index instead and kept whole (their CRC matched).
+    pub reframed_chunks: u64,
 }
 
 impl Recovery {
@@ -71,6 +86,7 @@ impl Recovery {
     /// was left out: a damaged chunk, or part of a file that had its footer.
     pub fn lost_more_than_a_tail(&self) -> bool {
         !self.damaged_chunks.is_empty()
+            || !self.damaged_spans.is_empty()
             || self.orphaned_messages > 0
             || (self.was_complete && self.stopped_at.is_some())
     }
@@ -201,6 +217,14 @@ pub fn lost(recovery: &Recovery) -> String {
             recovery.damaged_chunks[0]
         )),
     }
+    match recovery.damaged_spans.len() {
+        0 => {}
+        1 => what.push(format!("a damaged span ({})", recovery.damaged_spans[0])),
+        n => what.push(format!(
+            "{n} damaged spans (the first: {})",
+            recovery.damaged_spans[0]
+        )),
+    }
     if recovery.orphaned_messages > 0 {
         what.push(format!(
             "{} messages of channels declared only in a damaged chunk",
@@ -254,23 +278,47 @@ fn recover_source<W: Write + Seek>(
     let mut profile = String::new();
     let mut described = false;
     let mut known = Known::default();
+    let summary = recovery
+        .was_complete
+        .then(|| intact_summary(source, size))
+        .flatten();
     let mut at = magic_len;
     loop {
-        let framed = match frame_at(source, at, size) {
-            Ok(Some(f)) => f,
-            Ok(None) => break,
-            Err(e) => {
-                recovery.stopped_at = Some(format!("a record cut short at byte {at}: {e}"));
-                break;
-            }
+        // A chunk the checked summary indexes is framed by its index: the CRC of
+        // its contents still decides whether it is kept.
+        let indexed = summary.as_ref().and_then(|s| s.chunks.get(&at));
+        let framed = match indexed {
+            Some(&length) if length >= 9 => Ok(Framed {
+                op: op::CHUNK,
+                at,
+                length: length - 9,
+            }),
+            _ => match frame_at(source, at, size) {
+                Ok(Some(f)) => Ok(f),
+                Ok(None) => break,
+                Err(e) => Err(format!("a record cut short at byte {at}: {e}")),
+            },
         };
-        let record = match read_record(source, &framed) {
-            Ok(r) => r,
+        let read = framed.and_then(|f| Ok((f, read_record(source, &f)?)));
+        let (framed, record) = match read {
+            Ok(read) => read,
             Err(e) => {
+                // A damaged record whose length no longer frames what follows:
+                // the index says where the next chunk starts.
+                if let Some(next) = summary.as_ref().and_then(|s| s.next_chunk_after(at)) {
+                    recovery
+                        .damaged_spans
+                        .push(format!("{e}, bytes {at}..{next}"));
+                    at = next;
+                    continue;
+                }
                 recovery.stopped_at = Some(e);
                 break;
             }
         };
+        if indexed.is_some() && framed_differently(source, &framed) {
+            recovery.reframed_chunks += 1;
+        }
         let end = framed.end();
         let kept: Vec<Record<'static>> = match record {
             Record::Header(h) => {
@@ -310,7 +358,7 @@ fn recover_source<W: Write + Seek>(
                 ),
             };
             described |= matches!(&record, Record::Metadata(m) if m.name == METADATA_NAME);
-            match keep(w, &mut known, record).map_err(write)? {
+            match keep(w, &mut known, summary.as_ref(), record).map_err(write)? {
                 Kept::Message => recovery.messages += 1,
                 Kept::Orphan => recovery.orphaned_messages += 1,
                 Kept::DamagedSchema(what) => recovery.damaged_schemas.push(what),
@@ -395,14 +443,17 @@ fn checked_schema<'a>(
 }
 
 /// Writes the records worth carrying over (schemas, channels with their ids,
-/// messages, metadata); indexes and statistics are written anew.
+/// messages, metadata); indexes and statistics are written anew. A schema or
+/// channel the walk lost with a damaged span is written from the checked
+/// `summary` when a record needs it; one already written is not written again.
 fn keep<W: Write + Seek>(
     writer: &mut mcap::Writer<W>,
     known: &mut Known,
+    summary: Option<&IntactSummary>,
     record: Record<'_>,
 ) -> Result<Kept, McapError> {
     match record {
-        Record::Schema { header, data } => {
+        Record::Schema { header, data } if !known.schemas.contains(&header.id) => {
             let (data, damage) = checked_schema(&header.name, &header.encoding, &data);
             writer.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
             known.schemas.insert(header.id);
@@ -413,22 +464,11 @@ fn keep<W: Write + Seek>(
                 )));
             }
         }
-        Record::Channel(c) => {
-            // Schema id 0: a channel without a schema.
-            if c.schema_id != 0 && !known.schemas.contains(&c.schema_id) {
-                return Ok(Kept::Other);
-            }
-            writer.add_channel_with_id(
-                c.id,
-                c.schema_id,
-                &c.topic,
-                &c.message_encoding,
-                &c.metadata,
-            )?;
-            known.channels.insert(c.id);
+        Record::Channel(c) if !known.channels.contains(&c.id) => {
+            add_channel(writer, known, summary, &c)?;
         }
         Record::Message { header, data } => {
-            if !known.channels.contains(&header.channel_id) {
+            if !known_channel(writer, known, summary, header.channel_id)? {
                 return Ok(Kept::Orphan);
             }
             writer.write_to_known_channel(&header, &data)?;
@@ -438,4 +478,72 @@ fn keep<W: Write + Seek>(
         _ => {}
     }
     Ok(Kept::Other)
+}
+
+/// Whether schema `id` is written (0, no schema, always is), writing it from
+/// `summary` when only the summary still holds it.
+fn known_schema<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    known: &mut Known,
+    summary: Option<&IntactSummary>,
+    id: u16,
+) -> Result<bool, McapError> {
+    if id == 0 || known.schemas.contains(&id) {
+        return Ok(true);
+    }
+    let Some((header, data)) = summary.and_then(|s| s.schemas.get(&id)) else {
+        return Ok(false);
+    };
+    let (data, _) = checked_schema(&header.name, &header.encoding, data);
+    writer.add_schema_with_id(id, &header.name, &header.encoding, &data)?;
+    known.schemas.insert(id);
+    Ok(true)
+}
+
+/// Whether channel `id` is written, writing it (and its schema) from `summary`
+/// when only the summary still holds it.
+fn known_channel<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    known: &mut Known,
+    summary: Option<&IntactSummary>,
+    id: u16,
+) -> Result<bool, McapError> {
+    if known.channels.contains(&id) {
+        return Ok(true);
+    }
+    let Some(c) = summary.and_then(|s| s.channels.get(&id)) else {
+        return Ok(false);
+    };
+    add_channel(writer, known, summary, c)
+}
+
+/// Writes channel `c` when its schema is written (schema id 0: none needed), the
+/// schema from `summary` if need be; whether it was written.
+fn add_channel<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    known: &mut Known,
+    summary: Option<&IntactSummary>,
+    c: &Channel,
+) -> Result<bool, McapError> {
+    if !known_schema(writer, known, summary, c.schema_id)? {
+        return Ok(false);
+    }
+    writer.add_channel_with_id(
+        c.id,
+        c.schema_id,
+        &c.topic,
+        &c.message_encoding,
+        &c.metadata,
+    )?;
+    known.channels.insert(c.id);
+    Ok(true)
+}
+
+/// Whether the file's own prefix of the chunk `framed` (framed by its index)
+/// states another opcode or length: a damaged prefix the index stepped over.
+fn framed_differently(source: &Source, framed: &Framed) -> bool {
+    let mut prefix = [0u8; 9];
+    source.read_exact_at(framed.at, &mut prefix).is_err()
+        || prefix[0] != framed.op
+        || prefix[1..9] != framed.length.to_le_bytes()
 }

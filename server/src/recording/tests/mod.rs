@@ -21,6 +21,7 @@ use crate::frame::{Frame, Holder, TickOutputs};
 
 mod chunked;
 mod damage;
+mod damage_indexed;
 mod files;
 mod list;
 mod lock;
