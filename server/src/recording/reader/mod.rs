@@ -50,7 +50,10 @@ pub enum ReadError {
          being written; recovering it rewrites it into a complete file"
     )]
     Truncated { file: String },
-    #[error("{file} is a corrupt MCAP file: {message}")]
+    #[error(
+        "{file} is a corrupt MCAP file: {message}; `laparo recordings recover` writes \
+         what is intact to another file (--out)"
+    )]
     Corrupt { file: String, message: String },
     #[error(
         "{file} ends before the recording's description (its `laparo.scene` \
