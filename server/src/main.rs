@@ -523,6 +523,9 @@ fn run(args: RunArgs) -> Result<(), String> {
             }
             let mut series = PvdSeries::new(path);
             series
+                .frames_writable(frames)
+                .map_err(|e| format!("--export-every {}: {e}", path.display()))?;
+            series
                 .write_frame(&sim)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             pvd = Some(Series {

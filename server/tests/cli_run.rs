@@ -545,6 +545,15 @@ fn an_export_over_a_directory_is_refused_before_the_run() {
     assert!(e.contains("it is a directory, not a regular file"), "{e}");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!stdout.contains("ran "), "refused after running: {stdout}");
+    // So is a series one of whose later frames is a directory: no frame written.
+    std::fs::create_dir_all(dir.join("s_000003.vtu")).unwrap();
+    let e = fail(
+        server()
+            .args(["run", "--seconds", "0.5", "--export-every", "0.1"])
+            .arg(dir.join("s.pvd")),
+    );
+    assert!(e.contains("s_000003.vtu: it is a directory"), "{e}");
+    assert!(!dir.join("s_000000.vtu").exists() && !dir.join("s.pvd").exists());
 }
 
 #[test]

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 
 use super::vtu::write_vtu;
 use crate::engine::simulation::Simulation;
-use crate::output::write_whole;
+use crate::output::{writable_over, write_whole};
 
 /// Most frames one series may hold: a bound on the files a run writes.
 pub const MAX_FRAMES: u64 = 100_000;
@@ -79,6 +79,14 @@ impl PvdSeries {
     /// The file name of frame `i`, beside the index: `STEM_NNNNNN.vtu`.
     fn frame_name(&self, i: u64) -> String {
         format!("{}_{i:06}.vtu", self.stem)
+    }
+
+    /// Refuses, before a run, a series whose first `frames` frame names include
+    /// one that exists and is not a regular file (a directory, a link, a device):
+    /// writing that frame would stop the run there ([`writable_over`]).
+    pub fn frames_writable(&self, frames: u64) -> io::Result<()> {
+        let dir = self.path.parent().unwrap_or(Path::new(""));
+        (0..frames.min(MAX_FRAMES)).try_for_each(|i| writable_over(&dir.join(self.frame_name(i))))
     }
 
     /// Whether `path` is where this series would write one of its frames, so that a
