@@ -138,6 +138,13 @@ impl RawMesh {
                     longest_edge,
                 },
             ),
+            Fault::Underflow { tet, extent } => (
+                self.tet_line(tet),
+                MeshErrorKind::UndersizedTet {
+                    element: self.element_ids[tet as usize],
+                    extent,
+                },
+            ),
             Fault::Overflow { tet, largest } => (
                 self.tet_line(tet),
                 MeshErrorKind::OversizedTet {

@@ -85,10 +85,7 @@ pub enum MeshErrorKind {
     NonFiniteCoordinate { node: u64, axis: char, text: String },
     /// A tetrahedron with (numerically) zero volume: its orientation, and so its
     /// stiffness, is undefined.
-    #[error(
-        "element {element} is a flat tetrahedron: |6V| = {} is at most \
-         1e-12 × (longest edge {})³", Number(*six_volume), Number(*longest_edge)
-    )]
+    #[error("{}", flat_text(*element, *six_volume, *longest_edge))]
     DegenerateTet {
         element: u64,
         six_volume: f64,
@@ -102,6 +99,14 @@ pub enum MeshErrorKind {
          coordinate of {}, and its edge lengths overflow", Number(*largest)
     )]
     OversizedTet { element: u64, largest: f64 },
+    /// A tetrahedron whose longest edge is under `1e-98` (mesh units), where the
+    /// flatness test underflows: `extent` is its largest coordinate difference.
+    #[error(
+        "element {element} is too small to compute with: its corners differ by at \
+         most {} in any coordinate, and its volume underflows (edges of at least \
+         1e-98 are needed; scale the mesh's units)", Number(*extent)
+    )]
+    UndersizedTet { element: u64, extent: f64 },
     /// After orientation was normalised, two tetrahedra that share a face lie on the same
     /// side of it: the mesh folds over itself, which no vertex swap can repair.
     #[error(
@@ -292,4 +297,18 @@ fn found_instead(found: Option<&str>) -> String {
         Some(text) => format!(" (found \"{text}\")"),
         None => " before the end of the file".to_owned(),
     }
+}
+
+/// The text of [`MeshErrorKind::DegenerateTet`]: a tetrahedron whose four nodes
+/// coincide is said to be a point, not measured against its zero edge.
+fn flat_text(element: u64, six_volume: f64, longest_edge: f64) -> String {
+    if longest_edge == 0.0 {
+        return format!("element {element} is a point: its four nodes are at one place");
+    }
+    format!(
+        "element {element} is a flat tetrahedron: |6V| = {} is at most 1e-12 × (longest \
+         edge {})³",
+        Number(six_volume),
+        Number(longest_edge)
+    )
 }

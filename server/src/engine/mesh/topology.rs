@@ -21,6 +21,13 @@ use super::surface::Surface;
 /// simulating, so it only catches tetrahedra that really are flat.
 pub(super) const FLAT_TOLERANCE: f64 = 1e-12;
 
+/// Smallest longest edge the flatness test can judge, in mesh units: below about
+/// `2.8e-99` the tolerance `FLAT_TOLERANCE · L³` is under the smallest normal f64
+/// (`2.2e-308`), and the volume underflows with it, so a well-shaped element
+/// would be called flat. An element smaller than this is said to be too small
+/// (and one whose four nodes coincide, to be a point) rather than flat.
+pub(super) const MIN_EDGE: f64 = 1e-98;
+
 /// The faces of a positively oriented tetrahedron `[v0, v1, v2, v3]`, as local vertex
 /// indices ordered so that each face's normal `(b − a) × (c − a)` points out of the
 /// tetrahedron. Face `k` is the face opposite local vertex `k`.
@@ -45,6 +52,12 @@ pub(super) enum Fault {
     Overflow {
         tet: u32,
         largest: f64,
+    },
+    /// A tetrahedron, not a point, too small for the flatness test's arithmetic
+    /// (see [`MIN_EDGE`]); `extent` is its largest coordinate difference.
+    Underflow {
+        tet: u32,
+        extent: f64,
     },
     /// More than two tetrahedra share `face` (tets in ascending order).
     FaceShared {
@@ -131,6 +144,18 @@ pub(super) fn orient(positions: &[Point3<f64>], tets: &mut [[u32; 4]]) -> Result
             });
         }
         let longest_edge = longest_squared.sqrt();
+        if longest_edge < MIN_EDGE {
+            let extent = (0..4)
+                .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
+                .map(|(a, b)| (p[b] - p[a]).amax())
+                .fold(0.0, f64::max);
+            if extent > 0.0 {
+                return Err(Fault::Underflow {
+                    tet: i as u32,
+                    extent,
+                });
+            }
+        }
         let tolerance = FLAT_TOLERANCE * longest_squared * longest_edge;
         if six_volume.abs() <= tolerance {
             return Err(Fault::Degenerate {

@@ -147,6 +147,38 @@ fn a_tet_too_large_to_compute_with_is_named_so_not_flat() {
 }
 
 #[test]
+fn a_tet_too_small_to_compute_with_is_named_so_and_a_point_is_a_point() {
+    // A regular-cornered tetrahedron 1e-150 across: its edges' squares underflow to
+    // zero, and it read "flat ... (longest edge 0)³".
+    let tiny = ["1 0 0 0", "2 1e-150 0 0", "3 0 1e-150 0", "4 0 0 1e-150"];
+    let err = fail(&v1(&tiny, &TWO_TETS_V1[..1]));
+    assert_eq!(
+        err.kind,
+        MeshErrorKind::UndersizedTet {
+            element: 1,
+            extent: 1e-150
+        },
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains("too small to compute with"),
+        "{err}"
+    );
+    // Just above the bound, the same shape is judged by its shape and passes.
+    let small = ["1 0 0 0", "2 1e-90 0 0", "3 0 1e-90 0", "4 0 0 1e-90"];
+    let mesh = load(&v1(&small, &TWO_TETS_V1[..1]));
+    assert!(TetMesh::six_volume(&mesh.positions, mesh.tets[0]) > 0.0);
+    // Four nodes at one place: a point, said so.
+    let point = ["1 2 3 4", "2 2 3 4", "3 2 3 4", "4 2 3 4"];
+    let err = fail(&v1(&point, &TWO_TETS_V1[..1]));
+    assert!(
+        matches!(err.kind, MeshErrorKind::DegenerateTet { element: 1, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("is a point"), "{err}");
+}
+
+#[test]
 fn inverted_beyond_repair() {
     // Node 5 moved to the same side of face 2-3-4 as node 1: element 2 is listed
     // negatively, gets repaired, and then overlaps element 1.
