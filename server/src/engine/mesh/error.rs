@@ -158,6 +158,15 @@ pub enum Syntax {
         minimum: usize,
         found: usize,
     },
+    /// A count on the line (of tags, of nodes) larger than the fields after it:
+    /// said as such, not as a field count of `count` plus the fields before it.
+    #[error("{what} states {count} {items}, and only {room} fields follow the count")]
+    CountPastLine {
+        what: &'static str,
+        count: usize,
+        items: &'static str,
+        room: usize,
+    },
     /// A field that is not a number of the expected kind.
     #[error("cannot read {what} from \"{text}\"")]
     BadNumber { what: &'static str, text: String },

@@ -664,7 +664,18 @@ impl<'a> Parser<'a> {
             let reg_phys = self.number::<i32>(n, fields[2], "a physical region")?;
             self.number::<i32>(n, fields[3], "an elementary region")?;
             let count = self.number::<usize>(n, fields[4], "a node count")?;
-            let expected = count.saturating_add(5);
+            if count > fields.len() - 5 {
+                return Err(self.syntax(
+                    n,
+                    Syntax::CountPastLine {
+                        what: "the element line",
+                        count,
+                        items: "nodes",
+                        room: fields.len() - 5,
+                    },
+                ));
+            }
+            let expected = count + 5;
             if fields.len() != expected {
                 return Err(self.syntax(
                     n,
@@ -678,17 +689,18 @@ impl<'a> Parser<'a> {
             (reg_phys, &fields[5..])
         } else {
             let tags = self.number::<usize>(n, fields[2], "a tag count")?;
-            let minimum = tags.saturating_add(3);
-            if fields.len() < minimum {
+            if tags > fields.len() - 3 {
                 return Err(self.syntax(
                     n,
-                    Syntax::TooFewFields {
+                    Syntax::CountPastLine {
                         what: "the element line",
-                        minimum,
-                        found: fields.len(),
+                        count: tags,
+                        items: "tags",
+                        room: fields.len() - 3,
                     },
                 ));
             }
+            let minimum = tags + 3;
             let mut first = 0;
             for (k, text) in fields[3..minimum].iter().enumerate() {
                 let tag = self.number::<i32>(n, text, "a tag")?;

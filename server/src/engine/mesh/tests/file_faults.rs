@@ -104,23 +104,43 @@ fn malformed_wrong_field_count() {
 
     // v1 element line whose node count field promises more nodes than it lists.
     let err = fail(&v1(&TWO_NODES, &["1 4 1 1 4 1 2 3 4", "2 4 1 1 4 2 3 4"]));
+    assert_eq!(
+        err.kind,
+        MeshErrorKind::Malformed(Syntax::CountPastLine {
+            what: "the element line",
+            count: 4,
+            items: "nodes",
+            room: 3
+        })
+    );
+    assert_eq!(err.line, Some(v1_element_line(5, 1)));
+    // And one that lists more nodes than it says: the count is wrong.
+    let err = fail(&v1(&TWO_NODES, &["1 4 1 1 4 1 2 3 4", "2 4 1 1 3 2 3 4 5"]));
     assert!(matches!(
         err.kind,
         MeshErrorKind::Malformed(Syntax::FieldCount {
-            expected: 9,
-            found: 8,
+            expected: 8,
+            found: 9,
             ..
         })
     ));
-    assert_eq!(err.line, Some(v1_element_line(5, 1)));
 
-    // v2 element line shorter than its tag count.
-    let err = fail(&v2(&TWO_NODES, &["1 4 2 1 1 1 2 3 4", "2 4 9 1 1 2 3"]));
-    assert!(matches!(
-        err.kind,
-        MeshErrorKind::Malformed(Syntax::TooFewFields { minimum: 12, .. })
-    ));
-    assert_eq!(err.line, Some(v2_element_line(5, 1)));
+    // v2 element line shorter than its tag count, however large: said as a count
+    // the line does not hold.
+    for (count, text) in [(9, "9"), (4294967295, "4294967295")] {
+        let line = format!("2 4 {text} 1 1 2 3");
+        let err = fail(&v2(&TWO_NODES, &["1 4 2 1 1 1 2 3 4", line.as_str()]));
+        assert_eq!(
+            err.kind,
+            MeshErrorKind::Malformed(Syntax::CountPastLine {
+                what: "the element line",
+                count,
+                items: "tags",
+                room: 4
+            })
+        );
+        assert_eq!(err.line, Some(v2_element_line(5, 1)));
+    }
 }
 
 #[test]
