@@ -436,6 +436,12 @@ impl Scene {
             return Err(self.invalid("name", "must not be empty"));
         }
         self.check_name_length("name", &self.name)?;
+        if self.mesh.file.trim().is_empty() {
+            return Err(self.invalid(
+                "mesh.file",
+                "is empty: name a .msh file (beside the scene, or builtin:liver.msh)",
+            ));
+        }
         self.check_positive("mesh.scale", self.mesh.scale)?;
         if self.mesh.refine > MAX_REFINE {
             return Err(self.invalid(

@@ -88,6 +88,7 @@ fn out_of_range_values_are_named_with_their_path() {
             "material.young_modulus",
         ),
         ("density = 1.0", "density = 0.0", "material.density"),
+        ("file = \"builtin:liver.msh\"", "file = \" \"", "mesh.file"),
         (
             "file = \"builtin:liver.msh\"",
             "file = \"builtin:liver.msh\"\nscale = nan",
