@@ -35,8 +35,9 @@ struct Cli {
 /// Serving (the default, without a subcommand).
 #[derive(Args, Debug)]
 struct ServeArgs {
-    /// Address to listen on.
-    #[arg(long, default_value = "127.0.0.1:50051")]
+    /// Address to listen on: IP:PORT, or HOST:PORT resolved at startup.
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:50051",
+          value_parser = laparo_server::service::listen::listen_address)]
     listen: std::net::SocketAddr,
     /// Directory of scene files (.toml) offered besides the embedded default.
     #[arg(long, value_name = "DIR")]

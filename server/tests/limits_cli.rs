@@ -1,5 +1,5 @@
-//! `laparo-server` given out-of-range durations, a host that is not a name, or a
-//! scene whose mesh would block: a usage error or a clear failure, never a panic
+//! `laparo-server` given out-of-range durations, a host that is not a name, an
+//! address without a port, or a scene whose mesh would block: a usage error or a clear failure, never a panic
 //! or a hang.
 
 use std::process::{Child, Command, Output, Stdio};
@@ -78,6 +78,24 @@ fn an_allowed_host_that_is_not_a_name_is_a_usage_error_naming_the_option() {
         assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
         assert!(stderr.contains("--allowed-host"), "{bad}: {stderr}");
         assert!(!stderr.contains("panicked"), "{bad}: {stderr}");
+    }
+}
+
+#[test]
+fn a_listen_address_without_a_port_is_a_usage_error_naming_the_forms() {
+    for bad in ["localhost", "127.0.0.1", "127.0.0.1:70000", ":50051"] {
+        let out = finish(
+            server()
+                .args(["--no-recording", "--listen", bad])
+                .spawn()
+                .unwrap(),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
+        assert!(
+            stderr.contains("--listen") && stderr.contains("localhost:50051"),
+            "{bad}: {stderr}"
+        );
     }
 }
 

@@ -29,6 +29,7 @@ pub mod connections;
 pub mod decode_status;
 pub mod join_rate;
 pub mod limits;
+pub mod listen;
 pub mod liveness;
 pub mod observe;
 pub mod read_status;
