@@ -333,7 +333,13 @@ fn transport_failure(
     match failure::io_kind(error) {
         Some(std::io::ErrorKind::ConnectionRefused) => ConnectError::Refused { url },
         _ if !seen.connected() => ConnectError::Unreachable { url, detail },
-        _ if tls && connecting => ConnectError::Tls { url, detail },
+        _ if tls && connecting => match failure::certificate_words(&detail) {
+            Some(words) => ConnectError::Tls {
+                url,
+                detail: format!("{words} ({detail})"),
+            },
+            None => ConnectError::Tls { url, detail },
+        },
         _ if first.is_empty() => ConnectError::Closed { url },
         _ => ConnectError::Unreachable { url, detail },
     }

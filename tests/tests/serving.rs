@@ -294,10 +294,76 @@ async fn tls_files_that_cannot_serve_are_refused_by_name() {
         "{e}"
     );
     // A certificate with another's key says why, not just "transport error".
-    for (cert, key) in [(&a_cert, &b_key), (&a_key, &a_cert)] {
+    let e = serve(&a_cert, &b_key).await;
+    assert!(e.contains(&*b_key.display().to_string()), "{e}");
+    assert!(e.contains("its own key"), "{e}");
+    // A file that is not what its option takes is named with what it lacks, not
+    // as "transport error: peer sent no certificates".
+    let empty = dir.path().join("empty.pem");
+    std::fs::write(&empty, b"").unwrap();
+    for (cert, key, named, lacks) in [
+        (&a_key, &a_cert, &a_key, "--tls-cert"),
+        (&empty, &a_key, &empty, "--tls-cert"),
+        (&a_cert, &empty, &empty, "--tls-key"),
+        (&a_cert, &a_cert, &a_cert, "--tls-key"),
+    ] {
         let e = serve(cert, key).await;
-        assert!(e.len() > "TLS: transport error".len() + 20, "{e}");
-        assert!(e.contains(&*key.display().to_string()), "{e}");
-        assert!(e.contains("its own key"), "{e}");
+        let what = match lacks {
+            "--tls-cert" => "is not a PEM certificate",
+            _ => "is not a PEM private key",
+        };
+        assert!(
+            e.contains(&format!("{lacks} {} {what}", named.display())),
+            "{e}"
+        );
+        assert!(!e.contains("transport error"), "{e}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_refused_a_ca_certificate_as_the_servers_own_says_so_in_words() {
+    use laparo_client::connect::{ConnectConfig, connect};
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: String| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    // A self-signed CA certificate (CA:TRUE) served as the server's own.
+    let key = rcgen::KeyPair::generate().unwrap();
+    let names = vec!["localhost".to_string(), "127.0.0.1".to_string()];
+    let mut params = rcgen::CertificateParams::new(names).unwrap();
+    params.is_ca = rcgen::IsCa::Ca(rcgen::BasicConstraints::Unconstrained);
+    let ca = params.self_signed(&key).unwrap();
+    let (cert, key) = (
+        write("ca.crt", ca.pem()),
+        write("ca.key", key.serialize_pem()),
+    );
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let config = ServeConfig {
+        tls: Some(laparo_server::service::TlsFiles {
+            cert: cert.clone(),
+            key,
+        }),
+        ..ServeConfig::default()
+    };
+    let server = tokio::spawn(laparo_server::service::serve(config, listener, async {
+        let _ = stopped.await;
+    }));
+    let config = ConnectConfig {
+        ca_file: Some(cert.clone()),
+        ..ConnectConfig::new(format!("https://127.0.0.1:{port}"))
+    };
+    let Err(e) = connect(&config).await else {
+        panic!("connected to a server whose certificate is a CA");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("presents a CA certificate (CA:TRUE) as its own"),
+        "{e}"
+    );
+    let _ = stop.send(());
+    server.await.unwrap().unwrap();
 }

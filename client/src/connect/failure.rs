@@ -80,6 +80,43 @@ pub fn peer_answer(first: &[u8], tls: bool) -> Option<String> {
     None
 }
 
+/// Words for a TLS handshake that failed on the server's certificate, from the
+/// error chain's text (`detail`): rustls names the fault by its Rust name
+/// (`invalid peer certificate: UnknownIssuer`), which says little to an operator.
+/// `None` for any other failure.
+pub fn certificate_words(detail: &str) -> Option<&'static str> {
+    const FAULTS: [(&str, &str); 6] = [
+        (
+            "CaUsedAsEndEntity",
+            "the server presents a CA certificate (CA:TRUE) as its own, which TLS \
+             clients refuse: give the server a certificate signed by that CA, not the \
+             CA itself",
+        ),
+        (
+            "UnknownIssuer",
+            "the server's certificate is not signed by the CA certificate given (--ca)",
+        ),
+        (
+            "NotValidForName",
+            "the server's certificate does not name the host of the URL (its subject \
+             alternative names)",
+        ),
+        ("Expired", "the server's certificate has expired"),
+        (
+            "NotValidYet",
+            "the server's certificate is not valid yet (is this machine's clock right?)",
+        ),
+        ("Revoked", "the server's certificate is revoked"),
+    ];
+    if !detail.contains("invalid peer certificate") {
+        return None;
+    }
+    FAULTS
+        .iter()
+        .find(|(name, _)| detail.contains(name))
+        .map(|&(_, words)| words)
+}
+
 /// `bytes` as text, anything but printable ASCII escaped.
 fn printable(bytes: &[u8]) -> String {
     bytes.escape_ascii().to_string()

@@ -3,8 +3,7 @@
 
 use std::time::Duration;
 
-use super::failure::{lost, peer_answer};
-use super::tls::check_pem;
+use super::failure::{certificate_words, lost, peer_answer};
 use super::*;
 
 #[tokio::test]
@@ -48,16 +47,6 @@ async fn urls_are_checked_before_connecting() {
 }
 
 #[test]
-fn a_file_without_a_certificate_block_is_not_a_pem_certificate() {
-    assert!(check_pem(b"hello, I am not a certificate\n").is_err());
-    assert!(check_pem(b"").is_err());
-    let broken = b"-----BEGIN CERTIFICATE-----\n!!!not base64!!!\n-----END CERTIFICATE-----\n";
-    assert!(check_pem(broken).is_err());
-    let fine = b"-----BEGIN CERTIFICATE-----\nAAAA\n-----END CERTIFICATE-----\n";
-    assert_eq!(check_pem(fine), Ok(()));
-}
-
-#[test]
 fn a_peer_is_named_by_its_first_bytes() {
     let http1 = b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n";
     assert_eq!(
@@ -85,4 +74,29 @@ fn a_status_from_the_server_is_not_a_lost_connection_and_a_reset_is() {
     let words = lost(&status).expect("a reset is a lost connection");
     assert!(words.contains("closed the connection"), "{words}");
     assert!(!describe_status(&status).contains("Unknown"));
+}
+
+#[test]
+fn certificate_faults_are_put_in_words_and_other_failures_are_not() {
+    let chain = |fault: &str| format!("transport error: invalid peer certificate: {fault}");
+    for (fault, words) in [
+        (
+            "Other(OtherError(CaUsedAsEndEntity))",
+            "CA certificate (CA:TRUE)",
+        ),
+        (
+            "UnknownIssuer",
+            "not signed by the CA certificate given (--ca)",
+        ),
+        (
+            "NotValidForNameContext { expected: DnsName(\"a\"), presented: [] }",
+            "does not name the host",
+        ),
+        ("ExpiredContext { time: 1, not_after: 0 }", "has expired"),
+    ] {
+        let said = certificate_words(&chain(fault)).unwrap_or_default();
+        assert!(said.contains(words), "{fault}: {said}");
+    }
+    assert_eq!(certificate_words("transport error: connection reset"), None);
+    assert_eq!(certificate_words("UnknownIssuer in a log line"), None);
 }

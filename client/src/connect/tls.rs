@@ -7,11 +7,10 @@
 
 use std::path::Path;
 
-use rustls_pki_types::CertificateDer;
-use rustls_pki_types::pem::PemObject;
 use tonic::transport::{Certificate, ClientTlsConfig};
 
 use laparo_server::engine::scene::read_bounded;
+use laparo_server::service::tls_files::check_certificates;
 
 use super::ConnectError;
 
@@ -26,23 +25,9 @@ pub fn tls_config(url: &str, path: &Path) -> Result<ClientTlsConfig, ConnectErro
         path: path.to_owned(),
         source,
     })?;
-    check_pem(&pem).map_err(|reason| ConnectError::BadCa {
+    check_certificates(&pem).map_err(|reason| ConnectError::BadCa {
         path: path.to_owned(),
         reason,
     })?;
     Ok(ClientTlsConfig::new().ca_certificate(Certificate::from_pem(pem)))
-}
-
-/// Checks that `pem` holds at least one certificate and every certificate block
-/// decodes; says what is wrong otherwise.
-pub fn check_pem(pem: &[u8]) -> Result<(), String> {
-    let mut certificates = 0;
-    for item in CertificateDer::pem_slice_iter(pem) {
-        item.map_err(|e| format!("a certificate block does not decode ({e})"))?;
-        certificates += 1;
-    }
-    if certificates == 0 {
-        return Err("no `-----BEGIN CERTIFICATE-----` block".into());
-    }
-    Ok(())
 }

@@ -42,6 +42,7 @@ pub mod sessions;
 pub mod shutdown;
 pub mod station;
 pub mod stream;
+pub mod tls_files;
 
 use std::future::Future;
 use std::net::SocketAddr;
@@ -281,7 +282,20 @@ pub async fn serve(
             read_bounded(p, None, MAX_PEM_BYTES)
                 .map_err(|e| ServeError::Tls(format!("{} {e}", p.display())))
         };
-        let identity = Identity::from_pem(read(&tls.cert)?, read(&tls.key)?);
+        let (cert, key) = (read(&tls.cert)?, read(&tls.key)?);
+        tls_files::check_certificates(&cert).map_err(|why| {
+            ServeError::Tls(format!(
+                "--tls-cert {} is not a PEM certificate: {why}",
+                tls.cert.display()
+            ))
+        })?;
+        tls_files::check_private_key(&key).map_err(|why| {
+            ServeError::Tls(format!(
+                "--tls-key {} is not a PEM private key: {why}",
+                tls.key.display()
+            ))
+        })?;
+        let identity = Identity::from_pem(cert, key);
         builder = builder
             .tls_config(ServerTlsConfig::new().identity(identity))
             .map_err(|e| {
