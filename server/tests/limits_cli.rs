@@ -1,6 +1,6 @@
 //! `laparo-server` given out-of-range durations, a host that is not a name, an
-//! address without a port, or a scene whose mesh would block: a usage error or a clear failure, never a panic
-//! or a hang.
+//! address without a port, or a scene whose mesh would block: a usage error or a
+//! clear failure, never a panic or a hang.
 
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};

@@ -17,21 +17,16 @@ use std::collections::{BTreeMap, HashMap};
 use mcap::MAGIC;
 use mcap::records::{Channel, Record, SchemaHeader, op};
 
+use super::reader::{FOOTER_AND_MAGIC, MAX_SUMMARY_BYTES};
 use super::records::{frame, parse_one};
 use super::source::Source;
 
-/// Largest summary section read: a chunk index is about 100 bytes per chunk of
-/// about 1 MiB, so 64 MiB indexes far more than any session records.
-const MAX_SUMMARY_BYTES: u64 = 64 << 20;
-
 /// Bytes of the footer record: opcode, length, two offsets and the CRC.
-const FOOTER_BYTES: u64 = 1 + 8 + 8 + 8 + 4;
+const FOOTER_BYTES: usize = FOOTER_AND_MAGIC as usize - MAGIC.len();
 
 /// What a CRC-checked summary section says about its file.
 #[derive(Debug, Default)]
 pub struct IntactSummary {
-    /// Where the summary section starts; the data section ends before it.
-    pub start: u64,
     /// Each chunk record's first byte → its whole length (opcode and length
     /// prefix included), from the chunk indexes.
     pub chunks: BTreeMap<u64, u64>,
@@ -53,11 +48,11 @@ impl IntactSummary {
 /// file without one (cut short, still being written) or whose summary is damaged.
 pub fn intact_summary(source: &Source, size: u64) -> Option<IntactSummary> {
     let magic = MAGIC.len() as u64;
-    let footer_at = size.checked_sub(magic + FOOTER_BYTES)?;
-    let mut footer = [0u8; FOOTER_BYTES as usize];
+    let footer_at = size.checked_sub(FOOTER_AND_MAGIC)?;
+    let mut footer = [0u8; FOOTER_BYTES];
     source.read_exact_at(footer_at, &mut footer).ok()?;
     let u64_at = |i: usize| u64::from_le_bytes(footer[i..i + 8].try_into().expect("8 bytes"));
-    if footer[0] != op::FOOTER || u64_at(1) != FOOTER_BYTES - 9 {
+    if footer[0] != op::FOOTER || u64_at(1) != FOOTER_BYTES as u64 - 9 {
         return None;
     }
     let (start, crc) = (
@@ -76,10 +71,7 @@ pub fn intact_summary(source: &Source, size: u64) -> Option<IntactSummary> {
         return None;
     }
     let section = &covered[..(footer_at - start) as usize];
-    let mut summary = IntactSummary {
-        start,
-        ..IntactSummary::default()
-    };
+    let mut summary = IntactSummary::default();
     let mut at = 0;
     while let Some((_, _, next)) = frame(section, at).ok()? {
         match parse_one(&section[at..next], start + at as u64).ok()? {

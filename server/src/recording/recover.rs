@@ -288,12 +288,14 @@ fn recover_source<W: Write + Seek>(
         // its contents still decides whether it is kept.
         let indexed = summary.as_ref().and_then(|s| s.chunks.get(&at));
         let framed = match indexed {
-            Some(&length) if length >= 9 => Ok(Framed {
+            // Its length counts the opcode and length prefix, at least 9 bytes
+            // (`intact_summary` keeps no shorter entry).
+            Some(&length) => Ok(Framed {
                 op: op::CHUNK,
                 at,
                 length: length - 9,
             }),
-            _ => match frame_at(source, at, size) {
+            None => match frame_at(source, at, size) {
                 Ok(Some(f)) => Ok(f),
                 Ok(None) => break,
                 Err(e) => Err(format!("a record cut short at byte {at}: {e}")),

@@ -148,7 +148,7 @@ pub const MAX_HEAD_CHUNKS: usize = 4;
 pub const MAX_DURATION_CHUNKS: usize = 16;
 
 /// Bytes of the footer record and the end magic.
-const FOOTER_AND_MAGIC: u64 = 1 + 8 + 20 + 8;
+pub(super) const FOOTER_AND_MAGIC: u64 = 1 + 8 + 20 + 8;
 
 /// A chunk of the file: where its record starts, and whether it holds a surface
 /// frame when an index (or a look inside) says so.

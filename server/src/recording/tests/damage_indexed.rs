@@ -27,8 +27,6 @@ fn finished(dir: &Path) -> Finished {
         .clone();
     chunks.sort_by_key(|c| c.chunk_start_offset);
     assert!(chunks.len() >= 4, "{}", chunks.len());
-    // The first flush closed the first chunk alone: it holds the messages
-    // written before it.
     // The session's description has a chunk of its own; then each flush closed
     // one chunk, which starts where the file ended before it.
     assert_eq!(chunks.len(), boundaries.len());
@@ -52,9 +50,7 @@ fn with_u64(bytes: &[u8], at: u64, value: u64) -> Vec<u8> {
 #[test]
 fn a_chunk_whose_length_is_damaged_is_framed_by_the_index_and_kept_whole() {
     let dir = temp();
-    let Finished {
-        bytes, all, chunks, ..
-    } = finished(dir.path());
+    let Finished { bytes, all, chunks } = finished(dir.path());
     // The second chunk states a length 100 bytes short: its record ends inside
     // its own data, and nothing after it frames on its own.
     let chunk = &chunks[1];
@@ -87,9 +83,7 @@ fn a_chunk_whose_length_is_damaged_is_framed_by_the_index_and_kept_whole() {
 #[test]
 fn a_record_whose_length_frames_nothing_is_stepped_over_to_the_next_chunk() {
     let dir = temp();
-    let Finished {
-        bytes, all, chunks, ..
-    } = finished(dir.path());
+    let Finished { bytes, all, chunks } = finished(dir.path());
     // The first message index after the second chunk states a length past the
     // file's end: the walk cannot frame it, nor anything after it.
     let index_at = *chunks[1]
@@ -118,9 +112,7 @@ fn a_record_whose_length_frames_nothing_is_stepped_over_to_the_next_chunk() {
 #[test]
 fn a_channel_lost_with_a_damaged_span_comes_from_the_summary() {
     let dir = temp();
-    let Finished {
-        bytes, all, chunks, ..
-    } = finished(dir.path());
+    let Finished { bytes, all, chunks } = finished(dir.path());
     // Schemas and channels are top-level records before the first chunk. The
     // last channel record states a length past the file's end: the span from it
     // to the first chunk is stepped over, and that channel's record with it.
@@ -148,9 +140,7 @@ fn a_channel_lost_with_a_damaged_span_comes_from_the_summary() {
 #[test]
 fn a_summary_that_fails_its_crc_is_not_trusted() {
     let dir = temp();
-    let Finished {
-        bytes, all, chunks, ..
-    } = finished(dir.path());
+    let Finished { bytes, all, chunks } = finished(dir.path());
     // A damaged length, as above, and a summary whose bytes no longer match the
     // footer's CRC: the recovery stops at the damage, keeping what came before.
     let chunk = &chunks[1];
