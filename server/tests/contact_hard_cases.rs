@@ -6,6 +6,7 @@ mod common;
 use common::contact::*;
 use laparo_server::engine::contact::InstrumentPose;
 use laparo_server::engine::scene::Scene;
+use laparo_server::engine::scene::limits::MAX_INSTRUMENT_RADIUS_M;
 use laparo_server::engine::simulation::Simulation;
 use nalgebra::{Point3, Vector3};
 
@@ -273,4 +274,60 @@ fn stiff_tissue_with_the_implicit_integrator() {
         (0.67..1.5).contains(&ratio),
         "forces {forces:?}: ratio to the E ratio {ratio}"
     );
+}
+
+#[test]
+fn the_widest_instrument_a_scene_accepts_keeps_the_default_liver_bounded() {
+    // The scene's largest radius on both instruments; the README's press into the
+    // front, a tip pressed 10 cm down through the supported upper face, and a slanted
+    // press through its edge, each from a fresh liver. Such an instrument covers
+    // supports as it presses, leaving edges fixed inside it that no push clears
+    // (`engine/contact/push.rs`); every vertex must stay finite and within the
+    // liver's own size (0.19 m) of rest. The press down fails that from a 1 cm
+    // radius when such edges are pushed, and at 10 cm the front press halts.
+    let gestures: [(Point3<f64>, Point3<f64>, Vector3<f64>); 3] = [
+        (
+            Point3::new(0.0, 0.0, 0.09),
+            Point3::new(0.0, 0.0, 0.055),
+            Vector3::z(),
+        ),
+        (
+            Point3::new(0.0, 0.15, 0.03),
+            Point3::new(0.0, 0.05, 0.03),
+            Vector3::y(),
+        ),
+        (
+            Point3::new(0.0, 0.10, 0.15),
+            Point3::new(0.0, 0.03, 0.06),
+            Vector3::new(0.0, 1.0, 1.0).normalize(),
+        ),
+    ];
+    for (from, to, axis) in gestures {
+        let mut scene = Scene::default_scene();
+        for ins in &mut scene.instruments {
+            ins.radius = MAX_INSTRUMENT_RADIUS_M;
+        }
+        let mut sim = scene.build().unwrap();
+        let rest = sim.model.rest.clone();
+        let n = 120;
+        for k in 1..=2 * n {
+            let s = k.min(n) as f64 / n as f64;
+            sim.set_pose(0, Some(at(from + (to - from) * s, axis)));
+            sim.tick();
+            let far = sim
+                .state
+                .x
+                .iter()
+                .zip(&rest)
+                .map(|(x, r)| (x - r).norm())
+                .fold(
+                    0.0,
+                    |a: f64, d| if d.is_nan() { f64::INFINITY } else { a.max(d) },
+                );
+            assert!(
+                far < 0.19,
+                "pressing from {from} to {to}: a vertex {far:.3} m from rest at tick {k}"
+            );
+        }
+    }
 }

@@ -34,6 +34,10 @@
 //! pass sent it 8 cm in 16 passes); it is left as it is, and a pose that enters from
 //! outside, as through a trocar, never has one.
 //!
+//! A triangle with a support inside the instrument (a tip pressed into a supported
+//! face) stays inside whatever its free corners do; moving them would fling them pass
+//! after pass, as for such an edge (`push`), so it is left as it is.
+//!
 //! A move tilts the triangle, and one triangle's move can bring a neighbour in, so
 //! this runs inside the passes of the push-out, which repeat until nothing moves.
 
@@ -92,6 +96,10 @@ pub(super) fn push_faces(
         let c = closest_triangle_axis(&p, pose, length);
         let d = c.distance();
         if d >= radius {
+            continue;
+        }
+        // A support inside the instrument: left as it is (see the module notes).
+        if (0..3).any(|i| !free[i] && closest_point_axis(&p[i], pose, length).distance() < radius) {
             continue;
         }
         let delta: Vector3<f64> = if d > ON_AXIS * radius {

@@ -29,6 +29,10 @@ pub(super) struct Scratch {
     /// Start positions of the tick in the current instrument's frame, `R(x_start)`.
     pub rel_start: Vec<Point3<f64>>,
     pub fixed: Vec<bool>,
+    /// The longest rest length of the surface edges at each vertex, m (0 off the
+    /// surface): how far a corner of a triangle touching the instrument can be from
+    /// it (`tip::MAX_STRETCH`).
+    pub span: Vec<f64>,
     /// Candidate triangles, edges and vertices for the current instrument.
     pub triangles: Vec<u32>,
     pub edges: Vec<u32>,
@@ -58,9 +62,17 @@ impl Scratch {
         for &v in fixed {
             fixed_mask[v as usize] = true;
         }
+        let mut span = vec![0.0f64; n];
+        for &[a, b] in &surface.edges {
+            let l = (rest[a as usize] - rest[b as usize]).norm();
+            for v in [a, b] {
+                span[v as usize] = span[v as usize].max(l);
+            }
+        }
         Scratch {
             rel_start: rest.to_vec(),
             fixed: fixed_mask,
+            span,
             triangles: Vec::with_capacity(surface.triangles.len()),
             edges: Vec::with_capacity(surface.edges.len()),
             vertices: Vec::with_capacity(surface.vertices.len()),

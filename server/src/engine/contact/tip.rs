@@ -58,6 +58,21 @@ use crate::engine::mesh::Surface;
 /// `n·Z` below which a plane is too oblique to project onto along `Z`: at 0.2
 /// (78° from the axis) a vertex moves at most 5× its distance to the plane.
 const GRAZING: f64 = 0.2;
+/// How far from the axis a corner of the pressed triangle may be, in lengths of its own
+/// longest rest edge beyond the radius, to be laid on the tip plane.
+///
+/// A triangle under the tip has its corners within an edge of the axis, as long as
+/// that edge is; the tissue around a press stretches its edges by tens of percent.
+/// A corner further off belongs to a triangle a drag has stretched across the
+/// instrument, and projecting it along `Z` moves it by its distance to the plane over
+/// `n·Z`, whatever that is: a shaft through the liver beside its supports, turned
+/// about its tip, dragged one corner 0.85 m out with the triangle still across the
+/// axis, and the press threw that corner 2.2 m in one tick
+/// (`tests/contact_hard_cases.rs`). Such a corner is left where it is, as a support
+/// is; the other corners are still laid on the plane. Five rest edges is a stretch
+/// no tissue takes (55 mm on the coarse liver).
+pub(super) const MAX_STRETCH: f64 = 5.0;
+
 /// Triangles met one after another along the axis (folds) handled per tick.
 const MAX_LAYERS: usize = 4;
 
@@ -146,7 +161,8 @@ pub(super) fn press_tip(
         let q = pose.tip - n.into_inner() * radius;
         for v in tri {
             let vi = v as usize;
-            if s.fixed[vi] {
+            let off_axis = (x[vi] - pose.tip).cross(&z).norm();
+            if s.fixed[vi] || off_axis > radius + MAX_STRETCH * s.span[vi] {
                 continue;
             }
             let along = (q - x[vi]).dot(&n) / n.dot(&z);
