@@ -168,9 +168,10 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
       recordingHeader,
       list.map((r) => ({
         key: r.file,
-        // An unfinished file gets no replay link (Replay refuses it until it is
-        // recovered); in progress, it has one (instructors may replay it).
-        shape: `${r.file} ${r.state === RecordingState.UNFINISHED}`,
+        // An unfinished file, or one whose recorder failed, gets no replay link
+        // (Replay refuses it until it is recovered); in progress, it has one
+        // (instructors may replay it).
+        shape: `${r.file} ${r.state} ${r.failure}`,
         texts: [
           r.file,
           r.sessionId,
@@ -190,7 +191,13 @@ export function sessionsPage(root: HTMLElement, signal: AbortSignal): void {
               {},
               r.state === RecordingState.UNFINISHED
                 ? el("span", { class: "unfinished" }, "unfinished: recover with `laparo recordings recover`")
-                : el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay"),
+                : r.state === RecordingState.FAILED
+                  ? el(
+                      "span",
+                      { class: "unfinished" },
+                      `its recorder failed (${r.failure}): recover what was written with \`laparo recordings recover\``,
+                    )
+                  : el("a", { href: `#/replay/${encodeURIComponent(r.file)}`, class: "replay" }, "replay"),
             ),
           ),
       })),

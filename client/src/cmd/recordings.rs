@@ -155,6 +155,11 @@ fn server_state(r: &RecordingInfo) -> String {
         Ok(RecordingState::Unfinished) => "unfinished: no footer, its server stopped while \
             recording it (replay refuses it until `laparo recordings recover` completes it)"
             .into(),
+        Ok(RecordingState::Failed) => format!(
+            "failed: its recorder stopped while the session ran ({}); replay refuses it until \
+             `laparo recordings recover` completes what was written",
+            printable(&r.failure)
+        ),
         Ok(RecordingState::Unspecified) if r.in_progress => "in progress".into(),
         Ok(RecordingState::Unspecified) => "complete".into(),
         Err(_) => format!("state {} (unknown to this client)", r.state),
@@ -230,6 +235,17 @@ mod tests {
         // Cut short: not in progress, and not complete either.
         let unfinished = server_state(&info(RecordingState::Unfinished, false));
         assert!(unfinished.starts_with("unfinished") && unfinished.contains("recover"));
+        // Its recorder failed: the server's reason is shown.
+        let failed = server_state(&RecordingInfo {
+            failure: "cannot write x.mcap: No space left on device (os error 28)".into(),
+            ..info(RecordingState::Failed, false)
+        });
+        assert!(
+            failed.starts_with("failed")
+                && failed.contains("No space left")
+                && failed.contains("recover"),
+            "{failed}"
+        );
         assert_eq!(
             server_state(&info(RecordingState::Complete, false)),
             "complete"

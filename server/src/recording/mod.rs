@@ -74,7 +74,7 @@ pub mod writer;
 
 pub use list::{FileState, Listed, Lister, Listing, list};
 pub use reader::{ReadError, Recorded, Recording, RecordingMeta};
-pub use recorder::{Item, Recorder, RecorderError, RecorderStats, Report};
+pub use recorder::{Item, Recorder, RecorderError, RecorderStats, RecorderWatch, Report};
 pub use recover::{Existing, RecoverError, Recovery, recover};
 pub use resim::{
     MeshFiles, ResimError, ResimReport, Resimulation, Resimulator, Stepped, resimulate,

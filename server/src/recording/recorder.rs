@@ -150,6 +150,32 @@ struct Shared {
     ended: AtomicBool,
 }
 
+/// Whether a recorder still writes its file, and why it failed
+/// ([`Recorder::watch`]).
+#[derive(Clone, Debug)]
+pub struct RecorderWatch {
+    path: PathBuf,
+    shared: Arc<Shared>,
+}
+
+impl RecorderWatch {
+    /// The recording's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// As [`Recorder::is_writing`].
+    pub fn is_writing(&self) -> bool {
+        !self.shared.ended.load(Ordering::Acquire)
+    }
+
+    /// The error that stopped the recorder, if any, as clients are told it.
+    pub fn error(&self) -> Option<String> {
+        let error = self.shared.error.lock().unwrap_or_else(|e| e.into_inner());
+        error.as_ref().map(|e| e.to_string())
+    }
+}
+
 /// Least time between two lagging reports, ms: a recorder that keeps falling
 /// behind and catching up is reported once a second, not once a tick.
 const LAG_REPORT_INTERVAL_MS: u64 = 1000;
@@ -262,6 +288,16 @@ impl Recorder {
     /// The recording's path.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// A handle on whether this recorder still writes its file and why it failed,
+    /// that outlives the recorder and keeps none of its buffers: the server keeps
+    /// it to tell a listing which files a recorder of its own failed to finish.
+    pub fn watch(&self) -> RecorderWatch {
+        RecorderWatch {
+            path: self.path.clone(),
+            shared: self.shared.clone(),
+        }
     }
 
     /// Whether the file is still being written: the thread has not ended, so the

@@ -34,6 +34,7 @@ pub mod liveness;
 pub mod observe;
 pub mod read_status;
 pub mod recorder_room;
+pub mod recorders;
 pub mod recordings;
 pub mod registry;
 pub mod replay;

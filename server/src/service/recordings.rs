@@ -178,8 +178,14 @@ async fn blocking<T: Send + 'static>(
 }
 
 /// A listed recording as the contract states it; what comes from the file's
-/// metadata is escaped ([`printable`]).
-fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
+/// metadata is escaped ([`printable`]). `failure`: why a recorder of this server
+/// failed to finish it, for a file without its summary.
+fn info(
+    file: String,
+    size_bytes: u64,
+    l: &list::Listing,
+    failure: Option<String>,
+) -> v1::RecordingInfo {
     v1::RecordingInfo {
         file,
         session_id: printable(&l.session_id).into_owned(),
@@ -191,8 +197,13 @@ fn info(file: String, size_bytes: u64, l: &list::Listing) -> v1::RecordingInfo {
         state: match l.state {
             FileState::Complete => v1::RecordingState::Complete,
             FileState::InProgress => v1::RecordingState::InProgress,
+            FileState::Unfinished if failure.is_some() => v1::RecordingState::Failed,
             FileState::Unfinished => v1::RecordingState::Unfinished,
         } as i32,
+        failure: match l.state {
+            FileState::Unfinished => failure.unwrap_or_default(),
+            _ => String::new(),
+        },
     }
 }
 
@@ -249,9 +260,17 @@ fn open_for_replay(
             )));
         }
         FileState::Unfinished => {
+            let why = match registry.recorder_failure(&path) {
+                Some(failure) => format!(
+                    "its recorder failed while the session ran ({failure}); `laparo \
+                     recordings recover` completes what was written"
+                ),
+                None => "its server stopped while recording it; `laparo recordings \
+                         recover` completes it"
+                    .into(),
+            };
             return Err(Status::failed_precondition(format!(
-                "recording `{name}` ends without its summary: its server stopped while \
-                 recording it; `laparo recordings recover` completes it"
+                "recording `{name}` ends without its summary: {why}"
             )));
         }
     }
@@ -283,6 +302,7 @@ impl v1::recordings_server::Recordings for RecordingsService {
         let dir = self.dir()?;
         let registry = self.registry.clone();
         let lister = self.lister.clone();
+        let listed_dir = dir.clone();
         let listed = blocking(move || {
             lister
                 .list_at_most(&dir, list::MAX_LISTED_FILES, |p| registry.is_recording(p))
@@ -309,7 +329,12 @@ impl v1::recordings_server::Recordings for RecordingsService {
                 continue;
             }
             match &l.entry {
-                Ok(e) => recordings.push(info(l.file, l.size_bytes, e)),
+                Ok(e) => {
+                    let failure = (e.state == FileState::Unfinished)
+                        .then(|| self.registry.recorder_failure(&listed_dir.join(&l.file)))
+                        .flatten();
+                    recordings.push(info(l.file, l.size_bytes, e, failure))
+                }
                 Err(e) if l.fresh => {
                     tracing::warn!(file = %printable(&l.file), "not listed: {}", printable(&e.to_string()))
                 }

@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, Weak};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use laparo_proto::text::printable;
@@ -14,8 +14,9 @@ use super::capacity::{
     Capacity, ReplaySlots, session_weight, tetrahedra, too_large_a_session, too_many_sessions,
 };
 use super::catalog::SceneCatalog;
+use super::recorders::Recorders;
 use crate::engine::scene::Scene;
-use crate::recording::{Recorder, space};
+use crate::recording::space;
 use crate::session::{Closing, Session, SessionConfig, SessionError};
 
 /// A session being started, counted (as its weight, the second field) until it is
@@ -40,8 +41,9 @@ pub struct Registry {
     /// The free space a new recording needs there, bytes
     /// ([`space::MIN_FREE_BYTES`] unless [`with_min_free`](Self::with_min_free)).
     min_free: u64,
-    /// The recorders of this server's sessions, until their files are finished.
-    recorders: Mutex<Vec<Weak<Recorder>>>,
+    /// The recorders of this server's sessions, until their files are finished, and
+    /// the files they failed to finish.
+    recorders: Recorders,
     /// Whether the server is shutting down, and why.
     shutdown: Closing,
     /// How often each caller may join a station.
@@ -70,7 +72,7 @@ impl Registry {
             idle_timeout,
             recordings,
             min_free: space::MIN_FREE_BYTES,
-            recorders: Mutex::new(Vec::new()),
+            recorders: Recorders::default(),
             shutdown: Closing::new(),
             joins: Default::default(),
             max_sessions: usize::MAX,
@@ -134,25 +136,16 @@ impl Registry {
         self.sizes.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The recorders still writing, forgetting the others.
-    fn writing(&self) -> Vec<Arc<Recorder>> {
-        let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
-        let mut writing = Vec::new();
-        recorders.retain(|w| match w.upgrade() {
-            Some(r) if r.is_writing() => {
-                writing.push(r);
-                true
-            }
-            // Dropped or ended: its file is finished (or failed for good).
-            _ => false,
-        });
-        writing
-    }
-
     /// Whether a session of this server is still writing the recording at `path`,
     /// which then has no summary and footer yet.
     pub fn is_recording(&self, path: &Path) -> bool {
-        self.writing().iter().any(|r| r.path() == path)
+        self.recorders.is_recording(path)
+    }
+
+    /// Why a session's recorder failed to finish the recording at `path`, if one of
+    /// this server's did (see `recorders`).
+    pub fn recorder_failure(&self, path: &Path) -> Option<String> {
+        self.recorders.failure(path)
     }
 
     /// Resolves to the reason once the server is shutting down.
@@ -202,10 +195,8 @@ impl Registry {
                     Status::unavailable(format!("cannot start a session of scene `{name}`: {e}"))
                 }
             })?;
-        if let Some(recorder) = session.recorder_weak() {
-            let mut recorders = self.recorders.lock().unwrap_or_else(|e| e.into_inner());
-            recorders.retain(|w| w.upgrade().is_some_and(|r| r.is_writing()));
-            recorders.push(recorder);
+        if let Some(recorder) = session.recorder_watch() {
+            self.recorders.add(recorder);
         }
         self.map().insert(id, session.clone());
         drop(reserved);

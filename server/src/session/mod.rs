@@ -27,7 +27,7 @@ mod mechanics;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, OnceLock, Weak};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
@@ -37,7 +37,7 @@ use tokio::sync::{broadcast, watch};
 use crate::engine::scene::Scene;
 use crate::frame::Frame;
 use crate::frame::description::description;
-use crate::recording::{Item, Recorder, Report, SessionHeader};
+use crate::recording::{Item, Recorder, RecorderWatch, Report, SessionHeader};
 pub use closing::Closing;
 pub use error::SessionError;
 pub use eviction::Eviction;
@@ -301,10 +301,10 @@ impl Session {
         self.recorder.as_deref()
     }
 
-    /// A handle on the session's recorder that does not keep it alive: a recorder
-    /// that can no longer be reached through it has finished its file.
-    pub fn recorder_weak(&self) -> Option<Weak<Recorder>> {
-        self.recorder.as_ref().map(Arc::downgrade)
+    /// A handle on whether the session's recorder still writes its file and why it
+    /// failed, that does not keep the recorder alive ([`Recorder::watch`]).
+    pub fn recorder_watch(&self) -> Option<RecorderWatch> {
+        self.recorder.as_ref().map(|r| r.watch())
     }
 
     /// Publishes what the recorder asks to tell (to the live streams only: the
