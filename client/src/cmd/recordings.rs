@@ -64,11 +64,11 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
             let r = recover(&file, &out, existing)?;
             let lost = lost(&r);
             say!(
-                "{} → {}: {} chunks, {} messages kept ({} bytes); {}",
+                "{} → {}: {}, {} kept ({} bytes); {}",
                 file.display(),
                 out.display(),
-                r.chunks,
-                r.messages,
+                counted(r.chunks, "chunk", "chunks"),
+                counted(r.messages, "message", "messages"),
                 r.bytes_kept,
                 if !lost.is_empty() {
                     format!("left out: {lost}")
@@ -84,16 +84,25 @@ pub async fn run(command: RecordingsCommand) -> Result<(), BoxError> {
             for schema in &r.damaged_schemas {
                 say!("  damaged {schema}");
             }
-            if r.reframed_chunks > 0 {
-                say!(
-                    "  {} chunks whose length or opcode was damaged were framed by the file's \
-                     chunk index and kept whole (their CRC matched)",
-                    r.reframed_chunks
-                );
+            match r.reframed_chunks {
+                0 => {}
+                1 => say!(
+                    "  1 chunk whose length or opcode was damaged was framed by the file's \
+                     chunk index and kept whole (its CRC matched)"
+                ),
+                n => say!(
+                    "  {n} chunks whose length or opcode was damaged were framed by the file's \
+                     chunk index and kept whole (their CRC matched)"
+                ),
             }
             Ok(())
         }
     }
+}
+
+/// `n` of a thing, in the singular for one: "1 chunk", "7 chunks".
+fn counted(n: u64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }
 
 /// The table's header, printed once there is something to list.

@@ -225,11 +225,12 @@ pub fn lost(recovery: &Recovery) -> String {
             recovery.damaged_spans[0]
         )),
     }
-    if recovery.orphaned_messages > 0 {
-        what.push(format!(
-            "{} messages of channels declared only in a damaged chunk",
-            recovery.orphaned_messages
-        ));
+    match recovery.orphaned_messages {
+        0 => {}
+        1 => what.push("a message of a channel declared only in a damaged chunk".into()),
+        n => what.push(format!(
+            "{n} messages of channels declared only in a damaged chunk"
+        )),
     }
     if let Some(why) = &recovery.stopped_at {
         what.push(format!("{} bytes after {why}", recovery.bytes_dropped));
