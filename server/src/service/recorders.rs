@@ -15,7 +15,7 @@
 //! whose failure was forgotten reads as unfinished, which `laparo recordings
 //! recover` completes the same way).
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
@@ -37,8 +37,11 @@ pub struct Recorders {
 struct Inner {
     /// Recorders whose threads had not ended when last looked at.
     watching: Vec<RecorderWatch>,
-    /// Files a recorder failed to finish, oldest first, with why.
-    failed: VecDeque<(PathBuf, String)>,
+    /// Files a recorder failed to finish, with why; a listing asks for each file
+    /// without its summary, up to 2,048 a listing.
+    failed: HashMap<PathBuf, String>,
+    /// The keys of `failed`, oldest first, for forgetting.
+    order: VecDeque<PathBuf>,
 }
 
 impl Recorders {
@@ -61,12 +64,7 @@ impl Recorders {
     pub fn failure(&self, path: &Path) -> Option<String> {
         let mut inner = self.lock();
         inner.sweep();
-        inner
-            .failed
-            .iter()
-            .rev()
-            .find(|(p, _)| p == path)
-            .map(|(_, why)| why.clone())
+        inner.failed.get(path).cloned()
     }
 
     fn lock(&self) -> MutexGuard<'_, Inner> {
@@ -77,16 +75,21 @@ impl Recorders {
 impl Inner {
     /// Forgets the recorders whose threads ended, remembering those that failed.
     fn sweep(&mut self) {
-        let failed = &mut self.failed;
+        let (failed, order) = (&mut self.failed, &mut self.order);
         self.watching.retain(|w| {
             if w.is_writing() {
                 return true;
             }
             if let Some(why) = w.error() {
-                if failed.len() == MAX_REMEMBERED_FAILURES {
-                    failed.pop_front();
+                let path = w.path().to_path_buf();
+                if failed.insert(path.clone(), why).is_none() {
+                    order.push_back(path);
                 }
-                failed.push_back((w.path().to_path_buf(), why));
+                if order.len() > MAX_REMEMBERED_FAILURES
+                    && let Some(oldest) = order.pop_front()
+                {
+                    failed.remove(&oldest);
+                }
             }
             false
         });
@@ -157,6 +160,8 @@ mod tests {
         assert!(table.failure(&path(MAX_REMEMBERED_FAILURES)).is_some());
         assert_eq!(table.failure(&path(0)), None, "the oldest is forgotten");
         assert!(table.failure(&path(1)).is_some());
-        assert_eq!(table.lock().failed.len(), MAX_REMEMBERED_FAILURES);
+        let inner = table.lock();
+        assert_eq!(inner.failed.len(), MAX_REMEMBERED_FAILURES);
+        assert_eq!(inner.order.len(), MAX_REMEMBERED_FAILURES);
     }
 }
