@@ -5,6 +5,7 @@ mod common;
 
 use common::contact::*;
 use laparo_server::engine::contact::InstrumentPose;
+use laparo_server::engine::contact::closest::closest_point_axis;
 use laparo_server::engine::scene::Scene;
 use laparo_server::engine::scene::limits::MAX_INSTRUMENT_RADIUS_M;
 use laparo_server::engine::simulation::Simulation;
@@ -328,6 +329,19 @@ fn the_widest_instrument_a_scene_accepts_keeps_the_default_liver_bounded() {
                 far < 0.19,
                 "pressing from {from} to {to}: a vertex {far:.3} m from rest at tick {k}"
             );
+            // What is left inside is supports and what hangs on them: no free
+            // vertex is inside the instrument.
+            let pose = sim.instruments[0].current.unwrap();
+            let length = sim.instruments[0].active_length();
+            for &v in &sim.mesh.surface.vertices {
+                let d = closest_point_axis(&sim.state.x[v as usize], &pose, length).distance();
+                assert!(
+                    sim.fixed.binary_search(&v).is_ok()
+                        || d >= MAX_INSTRUMENT_RADIUS_M - DEPTH_TOLERANCE,
+                    "pressing from {from} to {to}: free vertex {v} {:.3e} m inside at tick {k}",
+                    MAX_INSTRUMENT_RADIUS_M - d
+                );
+            }
         }
     }
 }
