@@ -150,6 +150,18 @@ struct Shared {
     ended: AtomicBool,
 }
 
+impl Shared {
+    /// Whether the thread has not ended: the file has no summary and footer yet.
+    fn is_writing(&self) -> bool {
+        !self.ended.load(Ordering::Acquire)
+    }
+
+    /// The error that stopped the recorder, if any.
+    fn failure(&self) -> Option<RecorderError> {
+        self.error.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
 /// Whether a recorder still writes its file, and why it failed
 /// ([`Recorder::watch`]).
 #[derive(Clone, Debug)]
@@ -166,13 +178,12 @@ impl RecorderWatch {
 
     /// As [`Recorder::is_writing`].
     pub fn is_writing(&self) -> bool {
-        !self.shared.ended.load(Ordering::Acquire)
+        self.shared.is_writing()
     }
 
-    /// The error that stopped the recorder, if any, as clients are told it.
+    /// As [`Recorder::error`].
     pub fn error(&self) -> Option<String> {
-        let error = self.shared.error.lock().unwrap_or_else(|e| e.into_inner());
-        error.as_ref().map(|e| e.to_string())
+        self.shared.failure().map(|e| e.to_string())
     }
 }
 
@@ -303,7 +314,7 @@ impl Recorder {
     /// Whether the file is still being written: the thread has not ended, so the
     /// file has no summary and footer yet. False once it is finished or failed.
     pub fn is_writing(&self) -> bool {
-        !self.shared.ended.load(Ordering::Acquire)
+        self.shared.is_writing()
     }
 
     /// Whether the file was created (it may have failed later).
@@ -360,11 +371,7 @@ impl Recorder {
 
     /// The error that stopped the recorder, if any.
     pub fn failure(&self) -> Option<RecorderError> {
-        self.shared
-            .error
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+        self.shared.failure()
     }
 
     /// Writes what the channel holds, then the file's summary and footer, and waits

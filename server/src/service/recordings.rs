@@ -179,7 +179,7 @@ async fn blocking<T: Send + 'static>(
 
 /// A listed recording as the contract states it; what comes from the file's
 /// metadata is escaped ([`printable`]). `failure`: why a recorder of this server
-/// failed to finish it, for a file without its summary.
+/// failed to finish it; the caller asks only for a file without its summary.
 fn info(
     file: String,
     size_bytes: u64,
@@ -200,10 +200,7 @@ fn info(
             FileState::Unfinished if failure.is_some() => v1::RecordingState::Failed,
             FileState::Unfinished => v1::RecordingState::Unfinished,
         } as i32,
-        failure: match l.state {
-            FileState::Unfinished => failure.unwrap_or_default(),
-            _ => String::new(),
-        },
+        failure: failure.unwrap_or_default(),
     }
 }
 
