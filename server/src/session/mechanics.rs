@@ -13,6 +13,11 @@ use crate::engine::simulation::Simulation;
 use crate::frame::{Frame, Holder, TickOutputs};
 use crate::recording::{Item, Recorder, Report};
 
+/// The longest wall time between two reports of the tick times (and looks at the
+/// idle timeout) while the ticks run slower than their period; at the scene's rate
+/// they come once a simulated second.
+const REPORT_EVERY: Duration = Duration::from_secs(1);
+
 /// What the thread owns.
 pub(super) struct Mechanics {
     pub sim: Simulation,
@@ -62,6 +67,7 @@ impl Mechanics {
         let mut tick_ms: Vec<f64> = Vec::with_capacity(256);
         let mut idle_since: Option<Instant> = None;
         let mut next = Instant::now();
+        let mut reported = next;
         while !self.stop.load(Ordering::Relaxed) {
             let now = Instant::now();
             if now < next {
@@ -120,7 +126,13 @@ impl Mechanics {
                 .sim_time_bits
                 .store(self.sim.time.to_bits(), Ordering::Relaxed);
             tick_ms.push(started.elapsed().as_secs_f64() * 1e3);
-            if tick_ms.len() as f64 * self.sim.dt >= 1.0 {
+            // Once a second of ticks, or of wall time when the ticks are slower than
+            // their period: a scene whose ticks take 30 s (as much work as a tick may
+            // have) would otherwise report its tick times and look at its idle
+            // timeout once every 30 minutes.
+            let now = Instant::now();
+            if tick_ms.len() as f64 * self.sim.dt >= 1.0 || now - reported >= REPORT_EVERY {
+                reported = now;
                 tick_ms.sort_by(f64::total_cmp);
                 let at = |q: f64| tick_ms[((tick_ms.len() - 1) as f64 * q).round() as usize];
                 self.stats
@@ -130,9 +142,8 @@ impl Mechanics {
                     .tick_p99_bits
                     .store(at(0.99).to_bits(), Ordering::Relaxed);
                 tick_ms.clear();
-                // Once a second: close when nobody has been connected for the idle
-                // timeout.
-                if !self.check_idle(&mut idle_since, started) {
+                // Close when nobody has been connected for the idle timeout.
+                if !self.check_idle(&mut idle_since, now) {
                     break;
                 }
             }

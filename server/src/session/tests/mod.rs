@@ -13,6 +13,7 @@ use crate::recording::list::{self, FileState};
 
 mod halt;
 mod recording;
+mod slow;
 
 fn temp() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
