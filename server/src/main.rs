@@ -17,7 +17,8 @@ use laparo_server::engine::simulation::{Simulation, mesh_path};
 use laparo_server::export::pvd::{self, PvdSeries};
 use laparo_server::export::vtu::write_vtu;
 use laparo_server::headless::trajectory::Trajectory;
-use laparo_server::headless::{self, MAX_RUN_SECONDS};
+use laparo_server::headless::{self, MAX_RUN_SECONDS, out};
+use laparo_server::say;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -278,16 +279,26 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        // A record that cannot be written is dropped: the default says so with
+        // `eprintln!`, which panics when standard error itself is what failed
+        // (`headless::out`).
+        .log_internal_errors(false)
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Run(args)) => run(args),
         None => serve(cli.serve),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("laparo-server: {message}");
+    match (result, out::failure()) {
+        (Ok(()), None) => ExitCode::SUCCESS,
+        (Ok(()), Some(e)) => {
+            out::tell(format_args!(
+                "laparo-server: cannot write to standard output: {e} (the run went to its end and wrote its files)"
+            ));
+            ExitCode::FAILURE
+        }
+        (Err(message), _) => {
+            out::tell(format_args!("laparo-server: {message}"));
             ExitCode::FAILURE
         }
     }
@@ -445,7 +456,7 @@ fn run(args: RunArgs) -> Result<(), String> {
         Some((traj, _)) => traj.end_time().max(1e-3),
         None => 2.0,
     });
-    println!(
+    say!(
         "scene {}: {} vertices, {} tetrahedra, {} surface triangles, {} fixed; {:?} at {} Hz; built in {:.1} ms",
         printable(&sim.scene.name),
         sim.mesh.vertex_count(),
@@ -457,7 +468,7 @@ fn run(args: RunArgs) -> Result<(), String> {
         built.elapsed().as_secs_f64() * 1e3,
     );
     if sim.integrator.config().kind == IntegratorKind::Explicit {
-        println!(
+        say!(
             "explicit: {} substeps per tick (stability bound of mesh and material)",
             sim.integrator.explicit_substeps(sim.dt)
         );
@@ -488,7 +499,7 @@ fn run(args: RunArgs) -> Result<(), String> {
         if stop.load(Ordering::Relaxed) {
             return Err(interrupted(&sim, " during the static solve"));
         }
-        println!(
+        say!(
             "static: {} CG iterations, relative residual {:.1e}{}, {:.1} ms; largest displacement {:.3} mm",
             report.cg_iterations,
             report.relative_residual,
@@ -572,7 +583,7 @@ fn run(args: RunArgs) -> Result<(), String> {
                         ins.report.reaction.norm()
                     );
                 }
-                println!(
+                say!(
                     "tick {:>6}  t = {:>7.3} s  max displacement {:>8.3} mm  substeps {:>5}  CG iterations {:>4}{contact}",
                     sim.tick,
                     sim.time,
@@ -583,7 +594,7 @@ fn run(args: RunArgs) -> Result<(), String> {
             },
             &mut frame_due,
         );
-        println!(
+        say!(
             "ran {} ticks ({:.3} s simulated) in {:.3} s: tick median {:.3} ms, p99 {:.3} ms, max {:.3} ms; {:.1}x real time",
             summary.ticks,
             summary.sim_seconds,
@@ -593,7 +604,7 @@ fn run(args: RunArgs) -> Result<(), String> {
             summary.tick_max * 1e3,
             summary.sim_seconds / summary.wall_seconds.max(1e-12),
         );
-        println!(
+        say!(
             "mean CG iterations per tick {:.1}; ticks at the iteration cap {}; largest displacement at the end {:.3} mm",
             summary.mean_cg_iterations,
             summary.unconverged,
@@ -619,7 +630,7 @@ fn run(args: RunArgs) -> Result<(), String> {
                     .write_frame(&sim)
                     .map_err(|e| format!("cannot write {}: {e}", s.path.display()))?;
             }
-            println!("wrote {} ({} frames)", s.path.display(), s.frames.len());
+            say!("wrote {} ({} frames)", s.path.display(), s.frames.len());
         }
         if let Some(fault) = summary.fault {
             return Err(format!(
@@ -630,7 +641,7 @@ fn run(args: RunArgs) -> Result<(), String> {
     }
     if let Some(path) = &args.export {
         write_vtu(&sim, path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        println!("wrote {}", path.display());
+        say!("wrote {}", path.display());
     }
     Ok(())
 }

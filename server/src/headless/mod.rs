@@ -1,5 +1,6 @@
 //! Stepping a scene with no network: `laparo-server run`.
 
+pub mod out;
 pub mod signal;
 pub mod trajectory;
 

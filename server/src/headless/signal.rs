@@ -69,7 +69,9 @@ fn watch(flag: Arc<AtomicBool>) -> std::io::Result<()> {
             runtime.block_on(async move {
                 signals.recv().await;
                 flag.store(true, Ordering::Relaxed);
-                eprintln!("stopping at the end of this tick (a second signal stops now)");
+                super::out::tell(format_args!(
+                    "stopping at the end of this tick (a second signal stops now)"
+                ));
                 signals.recv().await;
                 std::process::exit(130);
             })
