@@ -24,11 +24,14 @@ fn main() -> ExitCode {
         )
         .with_ansi(false)
         .with_writer(|| cmd::out::EscapedLog(std::io::stderr()))
+        // A record that cannot be written is dropped: the default says so with
+        // `eprintln!`, which panics when standard error itself failed.
+        .log_internal_errors(false)
         .init();
     let runtime = match tokio::runtime::Runtime::new() {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("laparo: cannot start the async runtime: {e}");
+            cmd::out::tell(format_args!("laparo: cannot start the async runtime: {e}"));
             return ExitCode::from(1);
         }
     };
@@ -47,8 +50,8 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // The error may quote a path, a name or a server's text.
-            eprintln!("laparo: {}", laparo_proto::text::printable(&e.to_string()));
+            // The error may quote a path, a name or a server's text: `tell` escapes it.
+            cmd::out::tell(format_args!("laparo: {e}"));
             ExitCode::from(1)
         }
     }

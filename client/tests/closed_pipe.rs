@@ -156,3 +156,26 @@ fn a_demo_whose_reader_stops_after_one_line_still_finishes_its_recording() {
     );
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+/// A failure said on a standard error that cannot take it (a full disk, a log pipe
+/// nobody reads) still ends with status 1; `eprintln!` panicked there (status 101).
+#[test]
+fn a_failure_with_standard_error_unwritable_still_ends_with_status_1() {
+    let closed = || {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        Stdio::from(writer)
+    };
+    let full = || Stdio::from(std::fs::File::create("/dev/full").unwrap());
+    let missing = std::env::temp_dir().join("laparo-no-such-recording.mcap");
+    for (what, stderr) in [("a full disk", full()), ("a closed pipe", closed())] {
+        let status = laparo()
+            .arg("replay")
+            .arg(&missing)
+            .stdout(Stdio::null())
+            .stderr(stderr)
+            .status()
+            .expect("laparo runs");
+        assert_eq!(status.code(), Some(1), "stderr on {what}: {status}");
+    }
+}

@@ -86,11 +86,19 @@ pub fn line(args: fmt::Arguments<'_>) {
             }
             Ending::Quiet => std::process::exit(0),
             Ending::Failed => {
-                eprintln!("laparo: cannot write to standard output: {e}");
+                tell(format_args!("laparo: cannot write to standard output: {e}"));
                 std::process::exit(1)
             }
         }
     }
+}
+
+/// Writes one line to standard error, escaped as [`write_line`] does; a failure to
+/// write it is ignored, where `eprintln!` would panic (status 101) with standard
+/// error on a full disk or a closed pipe: there is nowhere left to say it, and the
+/// exit status still tells.
+pub fn tell(args: fmt::Arguments<'_>) {
+    let _ = write_line(&mut io::stderr().lock(), args);
 }
 
 /// A log writer that writes each record as [`printable`] text: the tracing

@@ -10,7 +10,7 @@ use laparo_server::recording::{Recording, summarize};
 
 use super::args::{RemoteArgs, offset, plot_size, speed};
 use super::observe::{print_report, print_watch_summary};
-use super::out::say;
+use super::out::{self, say};
 use super::{BoxError, ctrl_c};
 use crate::connect::ConnectConfig;
 use crate::observe::{ObserveConfig, run_observe};
@@ -140,12 +140,12 @@ fn heading(file: &Path, session: &str, scene: &str, format_version: &str) -> Str
 pub(crate) fn open_recording(path: &Path) -> Result<Recording, BoxError> {
     let recording = Recording::open_unfinished(path)?;
     if !recording.is_complete() {
-        eprintln!(
+        out::tell(format_args!(
             "note: {} ends without its summary (a killed server, or still being recorded); \
              read up to its last complete chunk. `laparo recordings recover` rewrites it \
              into a complete file.",
-            printable(&path.display().to_string()),
-        );
+            path.display(),
+        ));
     }
     Ok(recording)
 }

@@ -1,6 +1,7 @@
 //! `laparo resim FILE`: the recorded poses through the recorded (or another) scene,
 //! and the largest deviation from the recorded surfaces and forces.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -9,7 +10,7 @@ use laparo_server::engine::scene::{MAX_SCENE_BYTES, read_bounded};
 use laparo_server::recording::{ResimError, TOPIC_SURFACE, resimulate_as};
 
 use super::BoxError;
-use super::out::say;
+use super::out::{self, say};
 use super::replay::open_recording;
 
 /// `laparo resim`.
@@ -57,7 +58,12 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
     let mut shown = false;
     let r = resimulate_as(&recording, &meta, args.scene_dir.as_deref(), |tick| {
         if Instant::now() >= next_line {
-            eprint!("\r  tick {tick} of {}", total.unwrap_or(0));
+            // Not `eprint!`: it panics when stderr cannot be written.
+            let _ = write!(
+                std::io::stderr(),
+                "\r  tick {tick} of {}",
+                total.unwrap_or(0)
+            );
             next_line += Duration::from_secs(1);
             shown = true;
         }
@@ -72,7 +78,7 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
         }
     })?;
     if shown {
-        eprintln!();
+        out::tell(format_args!(""));
     }
     say!(
         "{}: re-simulated {} recorded ticks ({:.3} s simulated) in {:.2} s wall ({:.1}× real time)",
