@@ -1,6 +1,7 @@
 //! What `Station.Join` grants, as the contract states it: the role a station must
 //! state, watching without instruments (the rule of `Observe`), a claim granted
-//! whole or refused with a status.
+//! whole or refused with a status, instrument states every tick at any surface
+//! frame rate.
 
 use laparo_client::station::{StationConfig, StationError, run_station};
 use laparo_proto::v1;
@@ -221,4 +222,61 @@ async fn a_claim_is_granted_whole_or_refused_with_a_status() {
     let ran = run_station(config(&["right"])).await.unwrap();
     assert_eq!(ran.instruments, vec!["right".to_string()]);
     server.shutdown().await.unwrap();
+}
+
+/// A station that asks for few surface frames still gets its instruments' states
+/// (and the local models they carry, which its force loop renders from) every
+/// tick: at `--frame-rate 1` it used to get one model a second.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_station_at_a_low_surface_rate_gets_every_ticks_state() {
+    let server = TestServer::start(ServeConfig::default()).await;
+    let ch = server.channel().await;
+    let session = create_session(ch.clone(), None).await.unwrap().session_id;
+    let mut opening = open(&session, &["left"]);
+    if let Some(v1::station_message::Kind::Open(j)) = &mut opening.kind {
+        j.surface_frame_rate_hz = Some(2.0);
+    }
+    let mut station = join_raw(ch, None, Some(opening)).await.unwrap();
+    let joined = match station.rx.message().await.unwrap() {
+        Some(v1::ServerMessage {
+            kind: Some(Kind::Joined(j)),
+        }) => j,
+        other => panic!("expected Joined, got {other:?}"),
+    };
+    assert_eq!(joined.surface_frame_rate_hz, 2.0);
+    // Half a second of the default scene's 60 Hz ticks after the first state.
+    let (mut surfaces, mut state_ticks) = (0, std::collections::BTreeSet::new());
+    let mut first = None;
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    loop {
+        assert!(std::time::Instant::now() < deadline, "the stream stalled");
+        let m = station
+            .rx
+            .message()
+            .await
+            .unwrap()
+            .expect("the stream goes on");
+        match m.kind {
+            Some(Kind::SurfaceFrame(_)) => surfaces += 1,
+            Some(Kind::InstrumentState(s)) if s.instrument == "left" => {
+                let first = *first.get_or_insert(s.tick);
+                if s.tick >= first + 30 {
+                    break;
+                }
+                state_ticks.insert(s.tick);
+            }
+            _ => {}
+        }
+    }
+    // A watch channel keeps only the newest frame, so a busy machine may skip a few
+    // ticks; at 2 Hz, one surface comes at once and the next after 30 ticks.
+    assert!(
+        state_ticks.len() >= 15,
+        "states of {} of 30 ticks",
+        state_ticks.len()
+    );
+    assert!(
+        surfaces <= 3,
+        "{surfaces} surfaces in half a second at 2 Hz"
+    );
 }

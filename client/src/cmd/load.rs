@@ -30,6 +30,7 @@ pub struct LoadArgs {
     #[arg(long, value_name = "T", value_parser = seconds)]
     pub seconds: Duration,
     /// Surface frame rate the stations ask for, Hz (default: the mechanics rate).
+    /// The instruments' states and local models come every tick whatever it is.
     #[arg(long, value_name = "HZ", value_parser = positive_rate)]
     pub frame_rate: Option<f64>,
     /// Scene of the session created (default: the server's default scene).

@@ -38,7 +38,8 @@ pub struct StationArgs {
     /// Haptic rate of the force loops, Hz (300 to 4000).
     #[arg(long, value_name = "HZ", default_value_t = DEFAULT_RATE_HZ, value_parser = haptic_rate)]
     pub haptic_rate: f64,
-    /// Surface frame rate to ask for, Hz (default: the mechanics rate).
+    /// Surface frame rate to ask for, Hz (default: the mechanics rate). The
+    /// instruments' states and local models come every tick whatever it is.
     #[arg(long, value_name = "HZ", value_parser = positive_rate)]
     pub frame_rate: Option<f64>,
     /// How long to stay, s (default: until Ctrl-C or the session closes).

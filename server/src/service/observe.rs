@@ -11,7 +11,7 @@ use super::auth::caller;
 use super::limits::MAX_OBSERVERS_PER_SESSION;
 use super::liveness::{Liveness, Outbound, StationTimeout, Taken};
 use super::registry::Registry;
-use super::stream::{OUTBOUND, frame_rate, pump};
+use super::stream::{OUTBOUND, States, frame_rate, pump};
 use crate::session::Session;
 
 pub struct ObserveService {
@@ -81,7 +81,7 @@ impl v1::observe_server::Observe for ObserveService {
             // copied every frame for it, for ever.
             let queue = tx.clone();
             let (_done_tx, done) = watch::channel(false);
-            let pumping = pump(session, tx, rate, done);
+            let pumping = pump(session, tx, rate, States::WithSurfaces, done);
             tokio::pin!(pumping);
             let mut check = tokio::time::interval(period);
             check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);

@@ -51,7 +51,7 @@ use super::limits::MAX_STATIONS_PER_SESSION;
 use super::liveness::{Gone, Liveness, Outbound, StationTimeout, Taken};
 use super::recorder_room::RecorderRoom;
 use super::registry::Registry;
-use super::stream::{Item, OUTBOUND, Wrap, frame_rate, pump};
+use super::stream::{Item, OUTBOUND, States, Wrap, frame_rate, pump};
 use crate::session::{Eviction, PoseIn, RateLimit, Rejection, Session, check_pose};
 
 /// How long a station has to send its opening message.
@@ -317,7 +317,13 @@ impl Opened {
         } = self;
         let (done_tx, done) = watch::channel(false);
         let connected = session.connect();
-        tokio::spawn(pump(session.clone(), tx.clone(), rate, done));
+        tokio::spawn(pump(
+            session.clone(),
+            tx.clone(),
+            rate,
+            States::EveryTick,
+            done,
+        ));
         let taken = Taken::new(Instant::now());
         let (outbound, cut) = Outbound::new(rx, taken.clone());
         let reader = Reader {

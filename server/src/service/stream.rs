@@ -71,6 +71,19 @@ pub fn frame_rate(asked: Option<f64>, mechanics_hz: f64) -> Result<f64, Status> 
     }
 }
 
+/// When a stream sends the instruments' states.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum States {
+    /// With each surface frame, at the stream's frame rate: an observer draws them
+    /// with the surface.
+    WithSurfaces,
+    /// Every tick, whatever the surface frame rate: a station's force loop renders
+    /// from the local model a state carries, and needs it at the mechanics rate (a
+    /// station at `--frame-rate 1` got one model a second, its force up to a
+    /// second old).
+    EveryTick,
+}
+
 /// Sends the session's frames (at `rate_hz`), events, and its end, until the client
 /// goes, `done` fires, or the session closes (then the stream ends with
 /// `UNAVAILABLE` and the reason). Frames go with `try_send`: a client that does not
@@ -79,6 +92,7 @@ pub async fn pump<M: Wrap>(
     session: Arc<Session>,
     tx: mpsc::Sender<Result<M, Status>>,
     rate_hz: f64,
+    states: States,
     mut done: watch::Receiver<bool>,
 ) {
     let mut frames = session.frames();
@@ -114,19 +128,23 @@ pub async fn pump<M: Wrap>(
                 }
                 let frame = frames.borrow_and_update().clone();
                 // Half a tick of slack so a rate equal to the mechanics rate skips none.
-                if frame.sim_time + 0.5 / session.scene.mechanics.rate_hz < next_time {
+                let surface_due =
+                    frame.sim_time + 0.5 / session.scene.mechanics.rate_hz >= next_time;
+                if !surface_due && states == States::WithSurfaces {
                     continue;
                 }
-                next_time = frame.sim_time.max(next_time + period);
-                let surface = v1::SurfaceFrame {
-                    tick: frame.tick,
-                    sim_time_s: frame.sim_time,
-                    positions: frame.surface.clone(),
-                };
-                let Some(m) = send(Item::Surface(surface)) else { continue };
-                if tx.try_send(m).is_err() {
-                    if tx.is_closed() { break; }
-                    continue;
+                if surface_due {
+                    next_time = frame.sim_time.max(next_time + period);
+                    let surface = v1::SurfaceFrame {
+                        tick: frame.tick,
+                        sim_time_s: frame.sim_time,
+                        positions: frame.surface.clone(),
+                    };
+                    let Some(m) = send(Item::Surface(surface)) else { continue };
+                    if tx.try_send(m).is_err() {
+                        if tx.is_closed() { break; }
+                        continue;
+                    }
                 }
                 for state in &frame.instruments {
                     if let Some(m) = send(Item::State(state.clone())) {
