@@ -368,6 +368,10 @@ impl Session {
     /// Closes the session: streams end, the mechanics thread stops. Idempotent.
     pub fn close(&self, reason: &str) {
         if self.closing.close(reason) {
+            // A close's or an eviction's reason is a client's text: escaped in the
+            // log, sent as it is.
+            let printable = laparo_proto::text::printable(reason);
+            tracing::info!(session = %self.id, reason = %printable, "session closed");
             self.publish(
                 v1::EventKind::SessionClosing,
                 None,
