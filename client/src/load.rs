@@ -35,7 +35,7 @@ use crate::proto::v1::{
 };
 use crate::station::{
     Heartbeat, Intake, Link, POSE_RATE_RANGE_HZ, Poses, Received, Sent, StationError, answered,
-    check_rate,
+    check_rate, sending_rate,
 };
 
 /// What [`run_load`] does.
@@ -95,7 +95,9 @@ impl Counters {
 /// What one station of a load run saw.
 #[derive(Clone, Debug)]
 struct StationLoad {
-    posing: bool,
+    /// The rate it sent poses at, Hz, if it posed: the run's, or the server's
+    /// `Joined.max_pose_rate_hz` if lower.
+    pose_rate_hz: Option<f64>,
     frames: u64,
     states: u64,
     poses_sent: u64,
@@ -107,9 +109,9 @@ struct StationLoad {
 impl StationLoad {
     /// What a station received and sent; a pose is dropped when the queue was full
     /// or the request stream gone.
-    fn of(posing: bool, intake: Intake, poses: &Poses) -> Self {
+    fn of(pose_rate_hz: Option<f64>, intake: Intake, poses: &Poses) -> Self {
         StationLoad {
-            posing,
+            pose_rate_hz,
             frames: intake.frames,
             states: intake.states,
             poses_sent: poses.sent,
@@ -131,7 +133,8 @@ pub struct LoadSummary {
     pub stations: usize,
     /// Stations that held an instrument and sent poses.
     pub posing_stations: usize,
-    /// Pose rate of each posing station, Hz.
+    /// Pose rate of each posing station, Hz: the run's, or the server's
+    /// `Joined.max_pose_rate_hz` where that is lower.
     pub pose_rate_hz: f64,
     /// Configured duration, s.
     pub seconds: f64,
@@ -522,8 +525,9 @@ fn add_up(summary: &mut LoadSummary, results: Vec<StationResult>) {
                 for (code, n) in station.errors {
                     *summary.errors.entry(code).or_default() += n;
                 }
-                if station.posing {
+                if let Some(rate) = station.pose_rate_hz {
                     latency.merge(&station.latency);
+                    summary.pose_rate_hz = summary.pose_rate_hz.min(rate);
                 }
             }
             Err(e) => summary.failures.push(StationFailure {
@@ -556,6 +560,10 @@ async fn load_station(
     });
     let mut intake = Intake::new(&link.joined.instruments);
     let mut poses = Poses::new();
+    // Faster than the server admits, a station would empty its burst allowance,
+    // have poses refused and lose its stream, as `laparo station` would.
+    let pose_rate_hz = sending_rate(pose_rate_hz, link.joined.max_pose_rate_hz);
+    let sent_rate = instrument.as_ref().map(|_| pose_rate_hz);
     let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / pose_rate_hz));
     pose_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut heartbeat = Heartbeat::new();
@@ -577,7 +585,7 @@ async fn load_station(
                     Received::Event(_) | Received::Error | Received::Nothing => {}
                 },
                 // The session closed before the end of the run.
-                None => return Ok(StationLoad::of(instrument.is_some(), intake, &poses)),
+                None => return Ok(StationLoad::of(sent_rate, intake, &poses)),
             },
             _ = heartbeat.due() => heartbeat.beat(&poses, &link.outgoing),
             _ = pose_tick.tick(), if instrument.is_some() => {
@@ -591,7 +599,7 @@ async fn load_station(
         }
     }
     link.leave("load run finished".into()).await;
-    Ok(StationLoad::of(instrument.is_some(), intake, &poses))
+    Ok(StationLoad::of(sent_rate, intake, &poses))
 }
 
 #[cfg(test)]

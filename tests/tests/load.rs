@@ -146,3 +146,41 @@ async fn a_run_larger_than_a_session_takes_is_refused_and_leaves_no_session() {
     assert_eq!(session.max_stations as usize, max);
     server.shutdown().await.unwrap();
 }
+
+/// Posing stations asked to send faster than the server admits send at its rate
+/// (`Joined.max_pose_rate_hz`), as `laparo station` does: above it they emptied
+/// their burst allowance, had poses refused and lost their streams.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_load_run_faster_than_the_server_admits_poses_at_its_rate() {
+    let admitted = 40.0;
+    let server = TestServer::start(ServeConfig {
+        pose_limits: laparo_server::service::PoseLimits {
+            rate_hz: admitted,
+            burst: 5.0,
+        },
+        ..ServeConfig::default()
+    })
+    .await;
+    let config = LoadConfig {
+        connect: ConnectConfig::new(format!("http://{}", server.addr)),
+        session: None,
+        stations: 1,
+        pose_rate_hz: 1000.0,
+        duration: Duration::from_secs(3),
+        surface_frame_rate_hz: None,
+        scene: None,
+        record: Some(false),
+    };
+    let summary = run_load(config, |_| {}).await.unwrap();
+    assert!(summary.failures.is_empty(), "{:?}", summary.failures);
+    assert!(summary.errors.is_empty(), "{:?}", summary.errors);
+    assert_eq!(summary.posing_stations, 1);
+    assert_eq!(summary.pose_rate_hz, admitted);
+    assert_eq!(summary.poses_rejected, 0);
+    // At most 3 s at 40 Hz and the first at once (a busy machine sends fewer).
+    assert!(
+        (1..=121).contains(&summary.poses_sent),
+        "{} poses sent",
+        summary.poses_sent
+    );
+}

@@ -71,7 +71,7 @@ pub async fn run(args: LoadArgs) -> Result<(), BoxError> {
         );
     })
     .await?;
-    print_summary(&summary);
+    print_summary(&summary, args.pose_rate);
     if !summary.failures.is_empty() {
         return Err(format!("{} station(s) failed", summary.failures.len()).into());
     }
@@ -79,8 +79,14 @@ pub async fn run(args: LoadArgs) -> Result<(), BoxError> {
 }
 
 /// The result of a load run, ending with its markdown table row.
-fn print_summary(summary: &LoadSummary) {
+fn print_summary(summary: &LoadSummary, asked_pose_rate_hz: f64) {
     say!();
+    if summary.posing_stations > 0 && summary.pose_rate_hz < asked_pose_rate_hz {
+        say!(
+            "the server admits {} poses a second per instrument: the stations sent at that rate, not {asked_pose_rate_hz}",
+            summary.pose_rate_hz
+        );
+    }
     say!(
         "session {}{}: {} of {} stations sent poses; pose-to-state {}",
         summary.session_id,
