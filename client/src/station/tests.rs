@@ -134,3 +134,24 @@ fn the_sending_rate_is_the_lower_of_the_two_and_always_a_timer_period() {
         "haptic rate = 299.5 Hz is out of range (expected between 300 and 4000)"
     );
 }
+
+#[test]
+fn a_status_is_named_as_the_grpc_specification_spells_it() {
+    // Every code, against its Debug name turned to upper snake case.
+    for i in 0..=16 {
+        let code = tonic::Code::from(i);
+        let mut snake = String::new();
+        for (k, c) in format!("{code:?}").chars().enumerate() {
+            if c.is_uppercase() && k > 0 {
+                snake.push('_');
+            }
+            snake.push(c.to_ascii_uppercase());
+        }
+        assert_eq!(config::code_name(code), snake, "code {i}");
+    }
+    let error = StationError::from(tonic::Status::not_found("no session `s9`"));
+    assert_eq!(
+        error.to_string(),
+        "the server answered NOT_FOUND: no session `s9`"
+    );
+}
