@@ -47,10 +47,22 @@ impl ContactWatch {
                     kind: kind as i32,
                     station_id: station(k),
                     instrument: Some(sim.instruments[k].name.clone()),
-                    detail: format!("{now:?}"),
+                    detail: what_touches(now).to_owned(),
                 });
             }
             *was = now;
         }
+    }
+}
+
+/// What touches the liver in contact state `state`, in the words of a
+/// `CONTACT_BEGAN` event's detail: `tip`, `shaft` or `tip and shaft`; nothing for
+/// no contact (a `CONTACT_ENDED`'s detail is empty).
+pub fn what_touches(state: v1::ContactState) -> &'static str {
+    match state {
+        v1::ContactState::Tip => "tip",
+        v1::ContactState::Shaft => "shaft",
+        v1::ContactState::TipAndShaft => "tip and shaft",
+        v1::ContactState::None | v1::ContactState::Unspecified => "",
     }
 }

@@ -69,6 +69,16 @@ fn events_are_the_contact_changes_between_frames_and_come_with_their_tick() {
                 Some(sim.instruments[k].name.as_str())
             );
             assert_eq!(e.station_id, holder(k).station);
+            // What touches, in words; nothing once nothing does.
+            let state = v1::ContactState::try_from(frame.instruments[k].contact).unwrap();
+            let words = match state {
+                v1::ContactState::Tip => "tip",
+                v1::ContactState::Shaft => "shaft",
+                v1::ContactState::TipAndShaft => "tip and shaft",
+                _ => "",
+            };
+            assert_eq!(e.detail, words, "tick {}", frame.tick);
+            assert_eq!(e.detail.is_empty(), !now_in);
         }
         previous = Some(frame);
     }
