@@ -290,7 +290,7 @@ fn station_line(s: &StationInfo) -> String {
 }
 
 /// The items joined by `, `, or `none` when there are none.
-fn list_or<S: AsRef<str>>(items: &[S], none: &str) -> String {
+pub(crate) fn list_or<S: AsRef<str>>(items: &[S], none: &str) -> String {
     if items.is_empty() {
         none.into()
     } else {

@@ -8,6 +8,7 @@ use tokio::sync::watch;
 
 use super::args::{ServerArgs, haptic_rate, pose_rate, positive_rate, seconds};
 use super::out::say;
+use super::sessions::list_or;
 use super::{BoxError, ctrl_c};
 use crate::haptics::force_loop::DEFAULT_RATE_HZ;
 use crate::observe::event_line;
@@ -24,7 +25,8 @@ pub struct StationArgs {
     /// Session to join.
     #[arg(long, value_name = "ID")]
     pub session: String,
-    /// Instruments to claim, comma-separated.
+    /// Instruments to claim, comma-separated; `""` claims none and only watches
+    /// (an instructor's token).
     #[arg(
         long,
         value_delimiter = ',',
@@ -49,6 +51,7 @@ pub struct StationArgs {
 
 /// Joins the session as the arguments say, prints progress and the summary.
 pub async fn run(args: StationArgs) -> Result<(), BoxError> {
+    let instruments = args.claimed();
     let (progress_tx, progress_rx) = watch::channel(StationProgress::default());
     let config = StationConfig {
         connect: args.server.connect_config(),
@@ -59,24 +62,36 @@ pub async fn run(args: StationArgs) -> Result<(), BoxError> {
         progress: Some(progress_tx),
         on_event: Some(Box::new(|e| say!("event  {}", event_line(e)))),
         stop: Some(ctrl_c()),
-        client_name: station_name(&args.instruments),
+        client_name: station_name(&instruments),
         ..StationConfig::new(
             args.server.server.clone(),
             args.session.clone(),
-            args.instruments.clone(),
+            instruments.clone(),
         )
     };
     say!(
-        "station: joining session {} at {} with {:?}, poses at {} Hz, force loops at {} Hz",
+        "station: joining session {} at {} with {}, poses at {} Hz, force loops at {} Hz",
         args.session,
         args.server.server,
-        args.instruments,
+        list_or(&instruments, "no instrument (watching)"),
         args.pose_rate,
         args.haptic_rate
     );
     let summary = run_showing_progress(config, progress_rx).await?;
     print_summary(&summary);
     Ok(())
+}
+
+impl StationArgs {
+    /// The instruments to claim: `--instruments ""` (an empty name, which no scene
+    /// has) claims none, so that the station watches.
+    pub fn claimed(&self) -> Vec<String> {
+        self.instruments
+            .iter()
+            .filter(|name| !name.is_empty())
+            .cloned()
+            .collect()
+    }
 }
 
 /// The name the station joins by: `laparo station (left,right)`, within the server's
@@ -142,13 +157,16 @@ pub(crate) fn print_progress(p: &StationProgress) {
 pub(crate) fn print_summary(s: &StationSummary) {
     say!();
     say!(
-        "station {} in session {}: {:?} after {:.1} s",
+        "station {} in session {}: {} after {:.1} s",
         s.station_id,
         s.session_id,
         s.end,
         s.elapsed_s
     );
-    say!("  instruments granted  {:?}", s.instruments);
+    say!(
+        "  instruments granted  {}",
+        list_or(&s.instruments, "none (watching)")
+    );
     say!("  ticks seen           {} (last {})", s.ticks, s.last_tick);
     say!("  surface frames       {}", s.frames);
     say!("  instrument states    {}", s.states);

@@ -30,6 +30,7 @@ fn station_defaults_and_options() {
         panic!("not station")
     };
     assert_eq!(a.instruments, vec!["left".to_owned()]);
+    assert_eq!(a.claimed(), vec!["left".to_owned()]);
     assert_eq!(a.pose_rate, DEFAULT_POSE_RATE_HZ);
     assert_eq!(a.haptic_rate, DEFAULT_RATE_HZ);
     assert_eq!(a.seconds, None);
@@ -443,4 +444,23 @@ fn a_station_is_named_by_its_instruments_within_the_servers_limit() {
         assert!(name.starts_with("laparo station ("));
         assert!(name.ends_with(')'));
     }
+}
+
+#[test]
+fn a_station_given_no_instrument_claims_none_and_watches() {
+    let cli = parse(&[
+        "station",
+        "--server",
+        "http://127.0.0.1:50051",
+        "--session",
+        "s1",
+        "--instruments",
+        "",
+    ])
+    .unwrap();
+    let Command::Station(a) = cli.command else {
+        panic!("not station")
+    };
+    // Sent as [""] before: refused as "no instrument ``".
+    assert!(a.claimed().is_empty(), "{:?}", a.claimed());
 }

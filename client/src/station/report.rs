@@ -48,6 +48,17 @@ pub enum StationEnd {
     ServerClosed,
 }
 
+impl std::fmt::Display for StationEnd {
+    /// How the summary says it: "station 1 in session s1: its time was up after 2.0 s".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            StationEnd::Duration => "its time was up",
+            StationEnd::Stopped => "stopped",
+            StationEnd::ServerClosed => "the server ended the stream",
+        })
+    }
+}
+
 /// The figures of one instrument at the end.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InstrumentSummary {
