@@ -55,6 +55,8 @@ pub fn first_fault(surface: &[f32], instruments: &[v1::InstrumentState]) -> Opti
     None
 }
 
+/// The first part of an instrument's state that is not finite, named (a message
+/// a trainee and an instructor read: not the state's Debug form).
 fn instrument_fault(s: &v1::InstrumentState) -> Option<String> {
     let vec3 = |v: &Option<v1::Vec3>| v.as_ref().is_none_or(|v| finite(&[v.x, v.y, v.z]));
     let pose = |p: &Option<v1::Pose>| p.as_ref().is_none_or(|p| vec3(&p.tip) && vec3(&p.axis));
@@ -62,19 +64,35 @@ fn instrument_fault(s: &v1::InstrumentState) -> Option<String> {
         p.as_ref()
             .is_none_or(|p| vec3(&p.normal) && vec3(&p.anchor) && p.stiffness_n_per_m.is_finite())
     };
+    let first_bad = |parts: &[(&str, bool)]| {
+        parts
+            .iter()
+            .find(|(_, ok)| !ok)
+            .map(|(what, _)| what.to_string())
+    };
     if let Some(m) = &s.local_model {
-        let ok = pose(&m.pose)
-            && plane(&m.tip_plane)
-            && plane(&m.shaft_plane)
-            && m.young_modulus_pa.is_none_or(f64::is_finite);
-        if !ok {
-            return Some(format!("local model is not finite: {m:?}"));
+        let bad = first_bad(&[
+            ("pose", pose(&m.pose)),
+            ("tip plane", plane(&m.tip_plane)),
+            ("shaft plane", plane(&m.shaft_plane)),
+            (
+                "Young's modulus",
+                m.young_modulus_pa.is_none_or(f64::is_finite),
+            ),
+        ]);
+        if let Some(what) = bad {
+            return Some(format!("local model's {what} is not finite"));
         }
     }
     if let Some(f) = &s.force {
-        let ok = vec3(&f.force) && vec3(&f.torque) && finite(&[f.axial_n, f.magnitude_n]);
-        if !ok {
-            return Some(format!("force is not finite: {f:?}"));
+        let bad = first_bad(&[
+            ("force", vec3(&f.force)),
+            ("torque", vec3(&f.torque)),
+            ("axial force", f.axial_n.is_finite()),
+            ("force magnitude", f.magnitude_n.is_finite()),
+        ]);
+        if let Some(what) = bad {
+            return Some(format!("{what} is not finite"));
         }
     }
     if !pose(&s.pose) {

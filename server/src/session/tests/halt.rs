@@ -66,7 +66,13 @@ fn the_first_non_finite_or_far_flung_value_of_a_frame_is_named() {
         }),
         ..state([0.0; 3])
     };
-    assert!(first_fault(&[], &[model]).unwrap().contains("local model"));
+    // Named in words, not the state's Debug form.
+    let model = first_fault(&[], &[model]).unwrap();
+    assert_eq!(
+        model, "instrument `left`: local model's tip plane is not finite",
+        "{model}"
+    );
+    assert_eq!(force, "instrument `left`: force is not finite");
 }
 
 #[test]
