@@ -68,6 +68,37 @@ pub enum PlotError {
     Draw { file: String, message: String },
 }
 
+/// Whether a plot could be written at `path`, as far as can be told before it is
+/// drawn: a `.png` name, in a folder that exists, and not itself a folder. A
+/// command that makes a plot asks first, so that a name that cannot be written is
+/// refused before the command prints what it read (it was refused after).
+pub fn check_target(path: &Path) -> Result<(), PlotError> {
+    let file = || path.display().to_string();
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err(PlotError::NotPng { file: file() });
+    }
+    let refused = |message: String| PlotError::Draw {
+        file: file(),
+        message,
+    };
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match std::fs::metadata(parent) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => return Err(refused(format!("{} is not a folder", parent.display()))),
+        Err(e) => return Err(refused(e.to_string())),
+    }
+    if path.is_dir() {
+        return Err(refused("it is a folder".into()));
+    }
+    Ok(())
+}
+
 /// The series of recorded instrument states, in the order the instruments first
 /// appear. Instruments that never had a pose (no station held them) are left out.
 pub fn force_series<'a>(
@@ -171,12 +202,7 @@ pub fn draw(
     size: (u32, u32),
 ) -> Result<PlotRanges, PlotError> {
     let file = path.display().to_string();
-    if !path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        return Err(PlotError::NotPng { file });
-    }
+    check_target(path)?;
     if size.0 < 200 || size.1 < 150 {
         return Err(PlotError::TooSmall {
             file,

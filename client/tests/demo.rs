@@ -122,19 +122,30 @@ fn the_demo_presses_the_liver_and_reports() {
         .filter(|&(_, y, p)| y >= 380 && p == colour(COLORS[0]))
         .count();
     assert!(lane > 100, "{lane} pixels of the contact lane");
-    // A path that cannot be written: a clear error, exit status 1.
+    // A path that cannot be written: a clear error, exit status 1, before the
+    // summary is printed (it was printed whole, then the plot refused).
     let bad = dir.join("no-such-dir").join("forces.png");
-    let stderr = fails(&[
-        "replay".as_ref(),
-        path.as_os_str(),
-        "--plot".as_ref(),
-        bad.as_os_str(),
-    ]);
-    assert!(
-        stderr.contains(&format!("cannot plot to {}", bad.display()))
-            && stderr.contains("No such file or directory"),
-        "{stderr}"
-    );
+    let folder = dir.join("a-folder.png");
+    std::fs::create_dir_all(&folder).unwrap();
+    for (target, why) in [
+        (&bad, "No such file or directory"),
+        (&folder, "it is a folder"),
+        (&dir.join("forces.svg"), "must end in .png"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_laparo"))
+            .args(["replay".as_ref(), path.as_os_str(), "--plot".as_ref()])
+            .arg(target)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("cannot plot to {}", target.display()))
+                && stderr.contains(why),
+            "{stderr}"
+        );
+        assert!(out.stdout.is_empty(), "printed before refusing: {out:?}");
+    }
     let list = laparo(&[
         "recordings".as_ref(),
         "list".as_ref(),

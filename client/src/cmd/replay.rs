@@ -14,7 +14,7 @@ use super::out::{self, say};
 use super::{BoxError, ctrl_c};
 use crate::connect::ConnectConfig;
 use crate::observe::{ObserveConfig, run_observe};
-use crate::plot::{draw, force_series};
+use crate::plot::{check_target, draw, force_series};
 use crate::proto::v1::{ReplayMode, ReplayRequest};
 
 /// `laparo replay`.
@@ -49,6 +49,9 @@ pub struct ReplayArgs {
 pub async fn run(args: ReplayArgs) -> Result<(), BoxError> {
     if let Some(connect) = args.remote.connect_config() {
         return watch(connect, &args).await;
+    }
+    if let Some(out) = &args.plot {
+        check_target(out)?;
     }
     let recording = open_recording(&args.file)?;
     let s = summarize(&recording)?;
