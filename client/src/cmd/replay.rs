@@ -99,7 +99,7 @@ pub async fn run(args: ReplayArgs) -> Result<(), BoxError> {
             .filter(|name| !plotted.contains(name))
             .collect();
         say!(
-            "  plot                 {} ({}x{} px): |force| {:.3}–{:.3} N over {:.3}–{:.3} s simulated, {}{}",
+            "  plot                 {} ({}x{} px): axes |force| {:.3}–{:.3} N and {:.3}–{:.3} s simulated, {}{}",
             out.display(),
             args.plot_size.0,
             args.plot_size.1,
