@@ -165,7 +165,11 @@ pub fn lost(status: &Status) -> Option<String> {
 }
 
 /// What [`lost`] says of a connection the server closed (or that broke).
-const CLOSED: &str = "the server closed the connection: did it stop?";
+/// A server that stops closes its connections; so does one that ends a stream its
+/// client left unread for its `--station-timeout` (a client suspended, or too busy
+/// to read), which that client, frozen meanwhile, cannot tell apart.
+const CLOSED: &str = "the server closed the connection: did it stop, or end this stream \
+                      because it went unread for the server's --station-timeout?";
 
 /// [`lost`] for a stream that had heard nothing from the server for `silent`.
 ///
@@ -193,9 +197,34 @@ pub fn lost_after(status: &Status, silent: std::time::Duration) -> Option<String
 pub fn describe_status(status: &Status) -> String {
     lost(status).unwrap_or_else(|| {
         format!(
-            "the server answered {:?}: {}",
-            status.code(),
+            "the server answered {}: {}",
+            code_name(status.code()),
             status.message()
         )
     })
+}
+
+/// The name of a gRPC status code as the gRPC specification spells it
+/// (`INVALID_ARGUMENT`), where its `Debug` form reads `InvalidArgument`.
+pub fn code_name(code: tonic::Code) -> &'static str {
+    use tonic::Code::*;
+    match code {
+        Ok => "OK",
+        Cancelled => "CANCELLED",
+        Unknown => "UNKNOWN",
+        InvalidArgument => "INVALID_ARGUMENT",
+        DeadlineExceeded => "DEADLINE_EXCEEDED",
+        NotFound => "NOT_FOUND",
+        AlreadyExists => "ALREADY_EXISTS",
+        PermissionDenied => "PERMISSION_DENIED",
+        ResourceExhausted => "RESOURCE_EXHAUSTED",
+        FailedPrecondition => "FAILED_PRECONDITION",
+        Aborted => "ABORTED",
+        OutOfRange => "OUT_OF_RANGE",
+        Unimplemented => "UNIMPLEMENTED",
+        Internal => "INTERNAL",
+        Unavailable => "UNAVAILABLE",
+        DataLoss => "DATA_LOSS",
+        Unauthenticated => "UNAUTHENTICATED",
+    }
 }

@@ -92,7 +92,10 @@ pub enum StationError {
     Connect(#[from] ConnectError),
     /// The server ended the call with a gRPC status (named as the gRPC
     /// specification spells it, as the contract's comments do: `NOT_FOUND`).
-    #[error("the server answered {}: {message}", code_name(*code))]
+    #[error(
+        "the server answered {}: {message}",
+        crate::connect::failure::code_name(*code)
+    )]
     Status { code: tonic::Code, message: String },
     /// The connection broke under the call (the server died, closed it, or stopped
     /// answering); says which, in words.
@@ -125,31 +128,6 @@ pub enum StationError {
     /// The force loop configuration was refused.
     #[error(transparent)]
     ForceLoop(#[from] ConfigError),
-}
-
-/// The name of a gRPC status code as the gRPC specification spells it
-/// (`INVALID_ARGUMENT`), where its `Debug` form reads `InvalidArgument`.
-pub fn code_name(code: tonic::Code) -> &'static str {
-    use tonic::Code::*;
-    match code {
-        Ok => "OK",
-        Cancelled => "CANCELLED",
-        Unknown => "UNKNOWN",
-        InvalidArgument => "INVALID_ARGUMENT",
-        DeadlineExceeded => "DEADLINE_EXCEEDED",
-        NotFound => "NOT_FOUND",
-        AlreadyExists => "ALREADY_EXISTS",
-        PermissionDenied => "PERMISSION_DENIED",
-        ResourceExhausted => "RESOURCE_EXHAUSTED",
-        FailedPrecondition => "FAILED_PRECONDITION",
-        Aborted => "ABORTED",
-        OutOfRange => "OUT_OF_RANGE",
-        Unimplemented => "UNIMPLEMENTED",
-        Internal => "INTERNAL",
-        Unavailable => "UNAVAILABLE",
-        DataLoss => "DATA_LOSS",
-        Unauthenticated => "UNAUTHENTICATED",
-    }
 }
 
 impl From<tonic::Status> for StationError {

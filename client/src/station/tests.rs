@@ -147,7 +147,7 @@ fn a_status_is_named_as_the_grpc_specification_spells_it() {
             }
             snake.push(c.to_ascii_uppercase());
         }
-        assert_eq!(config::code_name(code), snake, "code {i}");
+        assert_eq!(crate::connect::failure::code_name(code), snake, "code {i}");
     }
     let error = StationError::from(tonic::Status::not_found("no session `s9`"));
     assert_eq!(
