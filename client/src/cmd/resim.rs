@@ -108,7 +108,9 @@ pub fn run(args: ResimArgs) -> Result<(), BoxError> {
     }
     say!(
         "  {}",
-        if r.is_exact() {
+        if r.ticks_compared == 0 {
+            "nothing compared: the recording holds no tick"
+        } else if r.is_exact() {
             "identical to the recording"
         } else {
             "differs from the recording"

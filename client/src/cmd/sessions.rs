@@ -72,7 +72,12 @@ pub enum SessionsCommand {
 #[derive(Args, Debug, Clone, Default)]
 pub struct CreateArgs {
     /// Scene to run [default: the server's default scene].
-    #[arg(long, value_name = "NAME", default_value = "")]
+    #[arg(
+        long,
+        value_name = "NAME",
+        default_value = "",
+        hide_default_value = true
+    )]
     pub scene: String,
     /// Close the session after this many seconds with nobody connected (0: never;
     /// at most 604800) [default: the server's].

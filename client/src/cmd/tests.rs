@@ -464,3 +464,25 @@ fn a_station_given_no_instrument_claims_none_and_watches() {
     // Sent as [""] before: refused as "no instrument ``".
     assert!(a.claimed().is_empty(), "{:?}", a.claimed());
 }
+
+#[test]
+fn sessions_create_help_states_one_default_for_the_scene() {
+    use clap::CommandFactory;
+    let mut cli = Cli::command();
+    let create = cli
+        .find_subcommand_mut("sessions")
+        .and_then(|s| s.find_subcommand_mut("create"))
+        .expect("laparo sessions create");
+    let help = create.render_long_help().to_string();
+    // It also showed the empty string the parser stands for it with.
+    assert_eq!(
+        help.matches("[default: the server's default scene]")
+            .count(),
+        1,
+        "{help}"
+    );
+    assert!(
+        !help.contains("[default: ]") && !help.contains("[default: \"\"]"),
+        "{help}"
+    );
+}
