@@ -415,11 +415,8 @@ impl Scene {
         }
     }
 
-    /// A name within [`MAX_NAME_BYTES`] and without control characters: a scene's
-    /// and an instrument's names are listed in terminals and shown in the console
-    /// as they are, where an escape or a line break would act or mislead (a name
-    /// `"a\u001b[31mred"` loaded and was served).
-    fn check_name(&self, path: &str, name: &str) -> Result<(), SceneError> {
+    /// A name within [`MAX_NAME_BYTES`].
+    fn check_name_length(&self, path: &str, name: &str) -> Result<(), SceneError> {
         let max = super::limits::MAX_NAME_BYTES;
         if name.len() > max {
             return Err(self.invalid(
@@ -427,15 +424,6 @@ impl Scene {
                 format!(
                     "is {} bytes, over the limit of {max} bytes (a client could not ask for it)",
                     name.len()
-                ),
-            ));
-        }
-        if let Some((at, c)) = name.char_indices().find(|(_, c)| c.is_control()) {
-            return Err(self.invalid(
-                path,
-                format!(
-                    "holds a control character (U+{:04X} at byte {at}); a name is shown as it is",
-                    c as u32
                 ),
             ));
         }
@@ -447,7 +435,7 @@ impl Scene {
         if self.name.trim().is_empty() {
             return Err(self.invalid("name", "must not be empty"));
         }
-        self.check_name("name", &self.name)?;
+        self.check_name_length("name", &self.name)?;
         if self.mesh.file.trim().is_empty() {
             return Err(self.invalid(
                 "mesh.file",
@@ -557,7 +545,7 @@ impl Scene {
             if ins.name.trim().is_empty() {
                 return Err(self.invalid(format!("{path}.name"), "must not be empty"));
             }
-            self.check_name(&format!("{path}.name"), &ins.name)?;
+            self.check_name_length(&format!("{path}.name"), &ins.name)?;
             if !names.insert(ins.name.as_str()) {
                 return Err(self.invalid(
                     format!("{path}.name"),

@@ -330,24 +330,3 @@ fn a_name_longer_than_a_client_may_send_is_refused() {
         "over the limit of 256",
     );
 }
-
-#[test]
-fn a_name_with_a_control_character_is_refused_where_it_stands() {
-    // Names are listed in terminals and the console as they are.
-    for (name, at) in [
-        ("a\\u0000b", "U+0000 at byte 1"),
-        ("r\\u001b[31m", "U+001B at byte 1"),
-        ("two\\nlines", "U+000A at byte 3"),
-        ("\\u009b1", "U+009B at byte 0"),
-    ] {
-        let named = MINIMAL.replace("name = \"t\"", &format!("name = \"{name}\""));
-        refused(build(&named), "name", at);
-        let instrument = format!(
-            "{MINIMAL}[[instruments]]\nname = \"{name}\"\nradius = 0.005\nlength = 0.3\ntrocar = [0.0, 0.0, 0.1]\n"
-        );
-        refused(build(&instrument), "instruments[0].name", at);
-    }
-    // Any other character passes.
-    let fine = MINIMAL.replace("name = \"t\"", "name = \"Leber – links (τ)\"");
-    build(&fine).unwrap();
-}
