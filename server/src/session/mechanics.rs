@@ -125,12 +125,12 @@ impl Mechanics {
             self.stats
                 .sim_time_bits
                 .store(self.sim.time.to_bits(), Ordering::Relaxed);
-            tick_ms.push(started.elapsed().as_secs_f64() * 1e3);
+            let now = Instant::now();
+            tick_ms.push((now - started).as_secs_f64() * 1e3);
             // Once a second of ticks, or of wall time when the ticks are slower than
             // their period: a scene whose ticks take 30 s (as much work as a tick may
             // have) would otherwise report its tick times and look at its idle
             // timeout once every 30 minutes.
-            let now = Instant::now();
             if tick_ms.len() as f64 * self.sim.dt >= 1.0 || now - reported >= REPORT_EVERY {
                 reported = now;
                 tick_ms.sort_by(f64::total_cmp);
